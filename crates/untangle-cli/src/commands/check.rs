@@ -1,0 +1,111 @@
+//! `untangle check FILE... [--body FILE] [--json PATH] [--colored-obj PATH]`
+
+use crate::output::{check_output, Context};
+use anyhow::{Context as _, Result};
+use std::path::{Path, PathBuf};
+use untangle::analysis::{self, report::Report, AnalysisMesh, ObjectKind};
+use untangle::mesh::obj;
+
+/// Arguments of `check`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Cloth meshes (OBJ), analysed together.
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// An obstacle (body) mesh: only its intersections with the cloth are analysed.
+    #[arg(long)]
+    pub body: Option<PathBuf>,
+    /// Write the JSON report here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write all meshes as one OBJ with per-vertex colours (red, green; grey for the body).
+    #[arg(long)]
+    pub colored_obj: Option<PathBuf>,
+}
+
+/// Runs `check`; exit code 0 when nothing intersects, 1 otherwise.
+pub fn run(args: Args, ctx: &Context) -> Result<u8> {
+    let mut inputs: Vec<&Path> = args.files.iter().map(|p| p.as_path()).collect();
+    if let Some(b) = &args.body {
+        inputs.push(b);
+    }
+    for out in [&args.json, &args.colored_obj].into_iter().flatten() {
+        check_output(out, &inputs)?;
+    }
+    let mut meshes = Vec::new();
+    for f in &args.files {
+        meshes.push((obj::read_obj(f)?, ObjectKind::Cloth));
+    }
+    if let Some(b) = &args.body {
+        meshes.push((obj::read_obj(b)?, ObjectKind::Obstacle));
+    }
+    let parts: Vec<_> = meshes.iter().map(|(m, k)| (m, *k)).collect();
+    let (am, pos) = AnalysisMesh::new(&parts)?;
+    let a = analysis::analyze(&am, &pos).context("intersection analysis")?;
+    let report = Report::new(&am, &a);
+    if let Some(p) = &args.json {
+        untangle::fsio::write_atomic(p, report.to_json().as_bytes())?;
+    }
+    if let Some(p) = &args.colored_obj {
+        let merged = am.merged(&pos, &meshes.iter().map(|m| &m.0).collect::<Vec<_>>());
+        let colors = analysis::coloring::vertex_colors(&am, &a.coloring, &a.segments);
+        obj::write_obj(p, &merged, Some(&colors), "untangle check: red = inside a tanglement, orange = on an intersecting triangle, green = clean, grey = obstacle")?;
+    }
+    if !ctx.quiet {
+        print!("{}", summary(&report));
+    }
+    Ok(if a.is_clean() { 0 } else { 1 })
+}
+
+/// A short human summary of a report.
+pub fn summary(r: &Report) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let names: Vec<&str> = r.objects.iter().map(|o| o.name.as_str()).collect();
+    let _ = writeln!(
+        s,
+        "analysed {} ({} triangles, {} vertices)",
+        names.join(", "),
+        r.triangles,
+        r.vertices
+    );
+    if r.intersecting_triangle_pairs == 0 {
+        let _ = writeln!(s, "no intersections");
+    } else {
+        let _ = writeln!(
+            s,
+            "{} intersecting triangle pairs ({} triangles), {} crossings",
+            r.intersecting_triangle_pairs,
+            r.intersecting_triangles.len(),
+            r.crossings
+        );
+        for g in &r.pairs_by_objects {
+            let [a, b] = g.objects.map(|o| r.objects[o as usize].name.as_str());
+            let what = if g.relation == "self" {
+                format!("{a} (self)")
+            } else {
+                format!("{a} x {b}")
+            };
+            let _ = writeln!(s, "  {what}: {} pairs", g.pairs);
+        }
+        let kinds: Vec<String> = r
+            .tanglements_by_kind
+            .iter()
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
+        let _ = writeln!(s, "tanglements: {}", kinds.join(", "));
+        let kinds: Vec<String> = r
+            .paths_by_kind
+            .iter()
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
+        let _ = writeln!(s, "paths: {}", kinds.join(", "));
+        let _ = writeln!(
+            s,
+            "red: {} vertices ({} out-most), {} triangles ({} red*)",
+            r.red_vertices, r.outmost_red_vertices, r.red_triangles, r.red_star_triangles
+        );
+    }
+    let _ = writeln!(s, "time: {:.2} ms", r.timing_ms.total);
+    s
+}

@@ -1,0 +1,72 @@
+//! The `untangle` command-line tool: argument parsing, progress display, files and exit codes on
+//! top of the `untangle` library.
+//!
+//! Exit codes: 0 success (nothing left intersecting), 1 intersections found or left, 2 error.
+
+mod commands;
+mod output;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Find, classify and remove self- and inter-penetrations in cloth and garment meshes.
+#[derive(Parser, Debug)]
+#[command(name = "untangle", version, about, long_about = None)]
+struct Cli {
+    /// Print nothing but errors (no summary, no progress bar).
+    #[arg(long, short, global = true)]
+    quiet: bool,
+    /// Worker threads (default: all cores). Results do not depend on it.
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Analyse meshes: find, trace, classify and colour every tanglement.
+    Check(commands::check::Args),
+    /// Write a procedural test scene with a known answer.
+    Scene(commands::scene::Args),
+    /// Run the main job on a built-in tangled example; results go to ./untangle-demo/.
+    Demo(commands::demo::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    if let Some(n) = cli.threads {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+        {
+            eprintln!("error: cannot start {n} threads: {e}");
+            return ExitCode::from(2);
+        }
+    }
+    let ctx = output::Context { quiet: cli.quiet };
+    let result = match cli.command {
+        Command::Check(a) => commands::check::run(a, &ctx),
+        Command::Scene(a) => commands::scene::run(a, &ctx),
+        Command::Demo(a) => commands::demo::run(a, &ctx),
+    };
+    match result {
+        Ok(code) => ExitCode::from(code),
+        Err(e) => {
+            // One line: what is wrong and where.
+            let msg = format!("{e:#}").replace('\n', " ");
+            eprintln!("error: {msg}");
+            ExitCode::from(2)
+        }
+    }
+}

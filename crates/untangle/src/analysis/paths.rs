@@ -1,0 +1,650 @@
+//! Intersection paths in parameter space, their correspondence and classification (Wicke et al.
+//! 2006, Sec. 4 and 4.1).
+//!
+//! Pieces (one per segment and triangle) are linked, not segments: at a crossing of an edge of
+//! the piece's own triangle the path passes across that edge into the neighbouring triangle; at a
+//! crossing of the other triangle's edge the path stays in its triangle and continues with the
+//! segment against the other triangle's neighbour; at a loop vertex it turns back into the other
+//! piece of its own segment. A boundary edge ends the path: `B` on the edge's side, `I` on the
+//! other. Every piece has two links, so the pieces form chains and cycles, found in one linear
+//! sweep (Wicke's path assembly was quadratic).
+//!
+//! Kinds: a closed chain is CLOSED (no turn), EIGHT (two turns at one vertex) or LL (turns at two
+//! vertices); an open chain with one turn is BLI (BLB if both ends are on a boundary); an open
+//! chain without turn is BB, BI or II. Two BLI chains sharing their loop vertex form a CROSS. As
+//! the paper says, EIGHT is split at the loop vertex into two corresponding CLOSED paths and CROSS
+//! into a BB/II pair; the original kind is kept as the tanglement kind.
+//!
+//! Under the symbolic perturbation a boundary crossing always gives one `B` and one `I` end, so
+//! BLB, BLLB and BB/BI pairs cannot occur; they are listed for completeness.
+
+use super::crossings::Crossing;
+use super::input::AnalysisMesh;
+use super::segments::{End, Inconsistency, Segments};
+use crate::mesh::topology::NONE;
+
+/// Kind of a parameter-space path (Wicke et al. 2006, Sec. 4.1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+pub enum PathKind {
+    /// Closed, no loop vertex.
+    #[serde(rename = "CLOSED")]
+    Closed,
+    /// Closed, one loop vertex met twice (split into two CLOSED paths).
+    #[serde(rename = "EIGHT")]
+    Eight,
+    /// Closed, two loop vertices.
+    #[serde(rename = "LL")]
+    LoopLoop,
+    /// Open, one loop vertex, one end on the boundary and one inside.
+    #[serde(rename = "BLI")]
+    BoundaryLoopInside,
+    /// Open, one loop vertex, both ends on the boundary.
+    #[serde(rename = "BLB")]
+    BoundaryLoopBoundary,
+    /// Open, two loop vertices.
+    #[serde(rename = "BLLB")]
+    BoundaryLoopLoopBoundary,
+    /// Two BLI paths sharing their loop vertex (split into a BB/II pair).
+    #[serde(rename = "CROSS")]
+    Cross,
+    /// Open, no loop vertex, both ends on the boundary.
+    #[serde(rename = "BB")]
+    BoundaryBoundary,
+    /// Open, no loop vertex, one end on the boundary.
+    #[serde(rename = "BI")]
+    BoundaryInside,
+    /// Open, no loop vertex, both ends inside.
+    #[serde(rename = "II")]
+    InsideInside,
+}
+
+impl PathKind {
+    /// The paper's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            PathKind::Closed => "CLOSED",
+            PathKind::Eight => "EIGHT",
+            PathKind::LoopLoop => "LL",
+            PathKind::BoundaryLoopInside => "BLI",
+            PathKind::BoundaryLoopBoundary => "BLB",
+            PathKind::BoundaryLoopLoopBoundary => "BLLB",
+            PathKind::Cross => "CROSS",
+            PathKind::BoundaryBoundary => "BB",
+            PathKind::BoundaryInside => "BI",
+            PathKind::InsideInside => "II",
+        }
+    }
+
+    /// Whether a path of this kind partitions the mesh (CLOSED, LL, BB; Wicke Sec. 4.2).
+    pub fn is_partitioning(self) -> bool {
+        matches!(
+            self,
+            PathKind::Closed | PathKind::LoopLoop | PathKind::BoundaryBoundary
+        )
+    }
+}
+
+/// How an open path ends.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum EndKind {
+    /// On a boundary edge of its own mesh.
+    #[serde(rename = "B")]
+    Boundary,
+    /// Inside its mesh (where a boundary edge of the other sheet pierces it).
+    #[serde(rename = "I")]
+    Inside,
+}
+
+/// A link from one end of a piece.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Link {
+    /// Continues into `piece`, entering at its end `end`.
+    Piece { piece: u32, end: u8 },
+    /// The path ends here.
+    Terminal(EndKind),
+}
+
+/// Piece `2 s + side` is segment `s` in the parameter space of `segments[s].triangles[side]`.
+#[inline]
+pub fn piece_triangle(segs: &Segments, piece: u32) -> u32 {
+    segs.segments[(piece / 2) as usize].triangles[(piece % 2) as usize]
+}
+
+/// The corresponding piece (same segment, other triangle).
+#[inline]
+pub fn partner(piece: u32) -> u32 {
+    piece ^ 1
+}
+
+/// A parameter-space intersection path.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Path {
+    /// Kind after splitting (never EIGHT or CROSS).
+    pub kind: PathKind,
+    /// EIGHT or CROSS when this path came from splitting one.
+    pub split_from: Option<PathKind>,
+    /// Pieces in order along the path.
+    pub pieces: Vec<u32>,
+    /// Whether the path is closed.
+    pub closed: bool,
+    /// End kinds of an open path (first piece's end, last piece's end).
+    pub ends: Option<[EndKind; 2]>,
+    /// Distinct loop vertices on the path.
+    pub loop_vertices: Vec<u32>,
+    /// Index of the corresponding path (itself for LL and BLI).
+    pub corresponds_to: u32,
+    /// Index of the tanglement this path belongs to.
+    pub tanglement: u32,
+    /// Object whose parameter space holds the path.
+    pub object: u32,
+    /// Edges the path passes across an odd number of times (the cut of a partitioning path).
+    pub cut_edges: Vec<u32>,
+}
+
+/// A tanglement: one intersection curve in world space with its parameter-space paths; its kind
+/// is one of Cha & Ko's seven categories (CLOSED, EIGHT, LL, BLI, CROSS, BBII, BIBI).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tanglement {
+    /// Category, e.g. `"BBII"`.
+    pub kind: String,
+    /// Its paths.
+    pub paths: Vec<u32>,
+    /// The objects involved (the same object twice for a self-intersection).
+    pub objects: [u32; 2],
+    /// Loop vertices involved.
+    pub loop_vertices: Vec<u32>,
+}
+
+/// A chain of pieces found by the linking sweep, before classification.
+struct Chain {
+    /// `(piece, entry end)` in walking order.
+    steps: Vec<(u32, u8)>,
+    closed: bool,
+    ends: Option<[EndKind; 2]>,
+    /// Positions `i` where step `i + 1` is the partner of step `i` (a turn at a loop vertex),
+    /// with the vertex; for a closed chain the wrap-around is position `len - 1`.
+    turns: Vec<(usize, u32)>,
+}
+
+/// Links every piece end. Returns `[Link; 2]` per piece, indexed by segment end.
+fn link_pieces(
+    mesh: &AnalysisMesh,
+    crossings: &[Crossing],
+    segs: &Segments,
+) -> Result<Vec<[Link; 2]>, Inconsistency> {
+    let topo = &mesh.topology;
+    let n = segs.segments.len() * 2;
+    let mut links = vec![[Link::Terminal(EndKind::Inside); 2]; n];
+    for (s, seg) in segs.segments.iter().enumerate() {
+        for side in 0..2 {
+            let piece = (2 * s + side) as u32;
+            let (tri, other) = (seg.triangles[side], seg.triangles[1 - side]);
+            for k in 0..2 {
+                links[piece as usize][k] = match seg.ends[k] {
+                    End::LoopVertex(_) => Link::Piece {
+                        piece: partner(piece),
+                        end: k as u8,
+                    },
+                    End::Crossing(c) => {
+                        let cr = crossings[c as usize];
+                        // Which triangle the path continues in, and the one it continues against.
+                        let (next_tri, against) = if cr.triangle == other {
+                            (topo.other_triangle(cr.edge, tri), other)
+                        } else {
+                            (tri, topo.other_triangle(cr.edge, other))
+                        };
+                        if next_tri == NONE || against == NONE {
+                            Link::Terminal(if next_tri == NONE {
+                                EndKind::Boundary
+                            } else {
+                                EndKind::Inside
+                            })
+                        } else {
+                            let oc = segs.of_crossing[c as usize];
+                            let ns = if oc[0] == s as u32 { oc[1] } else { oc[0] };
+                            if ns == NONE {
+                                return Err(Inconsistency(
+                                    tri,
+                                    other,
+                                    "crossing with one segment on an interior edge".into(),
+                                ));
+                            }
+                            let nseg = &segs.segments[ns as usize];
+                            let nside = nseg.triangles.iter().position(|&t| t == next_tri);
+                            let nend = nseg.ends.iter().position(|e| *e == End::Crossing(c));
+                            match (nside, nend, nseg.triangles.contains(&against)) {
+                                (Some(ns_side), Some(e), true) => Link::Piece {
+                                    piece: ns * 2 + ns_side as u32,
+                                    end: e as u8,
+                                },
+                                _ => {
+                                    return Err(Inconsistency(
+                                        tri,
+                                        other,
+                                        "crossing continues into an unexpected segment".into(),
+                                    ))
+                                }
+                            }
+                        }
+                    }
+                };
+            }
+        }
+    }
+    Ok(links)
+}
+
+fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> Vec<Chain> {
+    let n = links.len();
+    let mut visited = vec![false; n];
+    let mut chains = Vec::new();
+    let loop_vertex_of = |piece: u32| -> u32 {
+        let seg = &segs.segments[(piece / 2) as usize];
+        seg.ends
+            .iter()
+            .find_map(|e| match e {
+                End::LoopVertex(v) => Some(*v),
+                _ => None,
+            })
+            .unwrap_or(NONE)
+    };
+    // Follows the chain from `start` entered at `entry`, until a terminal or back at `start`.
+    let walk = |start: u32, entry: u8, visited: &mut Vec<bool>| -> Chain {
+        let mut steps = Vec::new();
+        let mut turns = Vec::new();
+        let (mut p, mut e) = (start, entry);
+        loop {
+            visited[p as usize] = true;
+            steps.push((p, e));
+            let exit = 1 - e;
+            match links[p as usize][exit as usize] {
+                Link::Terminal(kind) => {
+                    return Chain {
+                        steps,
+                        closed: false,
+                        ends: Some([EndKind::Inside, kind]),
+                        turns,
+                    }
+                }
+                Link::Piece { piece, end } => {
+                    if piece == partner(p) {
+                        turns.push((steps.len() - 1, loop_vertex_of(p)));
+                    }
+                    if piece == start && end == entry {
+                        return Chain {
+                            steps,
+                            closed: true,
+                            ends: None,
+                            turns,
+                        };
+                    }
+                    if visited[piece as usize] {
+                        // Cannot happen for consistent links (every link is mutual); stop
+                        // rather than loop.
+                        return Chain {
+                            steps,
+                            closed: true,
+                            ends: None,
+                            turns,
+                        };
+                    }
+                    p = piece;
+                    e = end;
+                }
+            }
+        }
+    };
+    for p in 0..n as u32 {
+        for k in 0..2u8 {
+            if visited[p as usize] {
+                break;
+            }
+            if let Link::Terminal(first) = links[p as usize][k as usize] {
+                let mut ch = walk(p, k, &mut visited);
+                if let Some(ends) = ch.ends.as_mut() {
+                    ends[0] = first;
+                }
+                chains.push(ch);
+            }
+        }
+    }
+    for p in 0..n as u32 {
+        if !visited[p as usize] {
+            chains.push(walk(p, 0, &mut visited));
+        }
+    }
+    chains
+}
+
+/// The edge a path passes across when it leaves `piece` through its end `exit` (the crossing
+/// edge belongs to the piece's own triangle), if any.
+fn edge_across(crossings: &[Crossing], segs: &Segments, piece: u32, exit: u8) -> Option<u32> {
+    let seg = &segs.segments[(piece / 2) as usize];
+    let other = seg.triangles[1 - (piece % 2) as usize];
+    match seg.ends[exit as usize] {
+        End::Crossing(c) if crossings[c as usize].triangle == other => {
+            Some(crossings[c as usize].edge)
+        }
+        _ => None,
+    }
+}
+
+/// Pieces of `steps[range]` and the edges crossed an odd number of times between them; when the
+/// sub-path starts or ends with a `B` end, that boundary edge counts too.
+fn cut_of(
+    crossings: &[Crossing],
+    segs: &Segments,
+    steps: &[(u32, u8)],
+    closed: bool,
+    b_start: bool,
+    b_end: bool,
+) -> Vec<u32> {
+    let mut edges = Vec::new();
+    let count = steps.len();
+    let transitions = if closed {
+        count
+    } else {
+        count.saturating_sub(1)
+    };
+    for i in 0..transitions {
+        let (p, e) = steps[i];
+        if let Some(edge) = edge_across(crossings, segs, p, 1 - e) {
+            edges.push(edge);
+        }
+    }
+    if b_start {
+        let (p, e) = steps[0];
+        if let Some(edge) = edge_across(crossings, segs, p, e) {
+            edges.push(edge);
+        }
+    }
+    if b_end {
+        let (p, e) = steps[count - 1];
+        if let Some(edge) = edge_across(crossings, segs, p, 1 - e) {
+            edges.push(edge);
+        }
+    }
+    edges.sort_unstable();
+    // Keep edges crossed an odd number of times.
+    let mut out = Vec::with_capacity(edges.len());
+    let mut i = 0;
+    while i < edges.len() {
+        let mut j = i;
+        while j < edges.len() && edges[j] == edges[i] {
+            j += 1;
+        }
+        if (j - i) % 2 == 1 {
+            out.push(edges[i]);
+        }
+        i = j;
+    }
+    out
+}
+
+/// Paths and tanglements of the given segments.
+pub fn trace_paths(
+    mesh: &AnalysisMesh,
+    crossings: &[Crossing],
+    segs: &Segments,
+) -> Result<(Vec<Path>, Vec<Tanglement>), Inconsistency> {
+    let links = link_pieces(mesh, crossings, segs)?;
+    let chains = walk_chains(&links, segs);
+    let object_of_piece = |p: u32| mesh.object_of_triangle[piece_triangle(segs, p) as usize];
+
+    // Classify chains; BLI chains are grouped by loop vertex to find CROSS pairs.
+    let mut paths: Vec<Path> = Vec::new();
+    let mut bli_by_vertex: std::collections::BTreeMap<u32, Vec<usize>> = Default::default();
+    #[derive(Clone, Copy, PartialEq)]
+    enum Class {
+        Plain(PathKind),
+        Eight,
+        Bli,
+    }
+    let mut classes = Vec::with_capacity(chains.len());
+    for (ci, ch) in chains.iter().enumerate() {
+        let class = if ch.closed {
+            match ch.turns.len() {
+                0 => Class::Plain(PathKind::Closed),
+                2 if ch.turns[0].1 == ch.turns[1].1 => Class::Eight,
+                _ => Class::Plain(PathKind::LoopLoop),
+            }
+        } else {
+            let ends = ch.ends.expect("open chains have ends");
+            match ch.turns.len() {
+                0 => Class::Plain(match ends {
+                    [EndKind::Boundary, EndKind::Boundary] => PathKind::BoundaryBoundary,
+                    [EndKind::Inside, EndKind::Inside] => PathKind::InsideInside,
+                    _ => PathKind::BoundaryInside,
+                }),
+                1 if ends == [EndKind::Boundary, EndKind::Boundary] => {
+                    Class::Plain(PathKind::BoundaryLoopBoundary)
+                }
+                1 => {
+                    bli_by_vertex.entry(ch.turns[0].1).or_default().push(ci);
+                    Class::Bli
+                }
+                _ => Class::Plain(PathKind::BoundaryLoopLoopBoundary),
+            }
+        };
+        classes.push(class);
+    }
+    // CROSS: exactly two BLI chains at one loop vertex.
+    let mut cross_partner = vec![usize::MAX; chains.len()];
+    for list in bli_by_vertex.values() {
+        if list.len() == 2 {
+            cross_partner[list[0]] = list[1];
+            cross_partner[list[1]] = list[0];
+        }
+    }
+
+    let mut path_of_piece = vec![u32::MAX; links.len()];
+    let mut make_path = |paths: &mut Vec<Path>,
+                         kind: PathKind,
+                         split_from: Option<PathKind>,
+                         steps: &[(u32, u8)],
+                         closed: bool,
+                         ends: Option<[EndKind; 2]>,
+                         loop_vertices: Vec<u32>,
+                         cut_edges: Vec<u32>| {
+        let idx = paths.len() as u32;
+        for &(p, _) in steps {
+            path_of_piece[p as usize] = idx;
+        }
+        paths.push(Path {
+            kind,
+            split_from,
+            pieces: steps.iter().map(|s| s.0).collect(),
+            closed,
+            ends,
+            loop_vertices,
+            corresponds_to: u32::MAX,
+            tanglement: u32::MAX,
+            object: object_of_piece(steps[0].0),
+            cut_edges,
+        });
+        idx
+    };
+
+    let mut tanglement_kind_of_path: Vec<Option<&'static str>> = Vec::new();
+    for (ci, ch) in chains.iter().enumerate() {
+        match classes[ci] {
+            Class::Plain(kind) => {
+                let b0 = ch.ends.map(|e| e[0] == EndKind::Boundary).unwrap_or(false);
+                let b1 = ch.ends.map(|e| e[1] == EndKind::Boundary).unwrap_or(false);
+                let cut = cut_of(crossings, segs, &ch.steps, ch.closed, b0, b1);
+                let mut lv: Vec<u32> = ch.turns.iter().map(|t| t.1).collect();
+                lv.sort_unstable();
+                lv.dedup();
+                make_path(
+                    &mut paths, kind, None, &ch.steps, ch.closed, ch.ends, lv, cut,
+                );
+                tanglement_kind_of_path.push(None);
+            }
+            Class::Eight => {
+                let (i, j) = (ch.turns[0].0, ch.turns[1].0);
+                let v = ch.turns[0].1;
+                let lobe1: Vec<(u32, u8)> = ch.steps[i + 1..=j].to_vec();
+                let mut lobe2: Vec<(u32, u8)> = ch.steps[j + 1..].to_vec();
+                lobe2.extend_from_slice(&ch.steps[..=i]);
+                for lobe in [lobe1, lobe2] {
+                    let cut = cut_of(crossings, segs, &lobe, true, false, false);
+                    make_path(
+                        &mut paths,
+                        PathKind::Closed,
+                        Some(PathKind::Eight),
+                        &lobe,
+                        true,
+                        None,
+                        vec![v],
+                        cut,
+                    );
+                    tanglement_kind_of_path.push(Some("EIGHT"));
+                }
+            }
+            Class::Bli => {
+                let other = cross_partner[ci];
+                if other == usize::MAX {
+                    let ends = ch.ends.expect("open");
+                    let cut = cut_of(
+                        crossings,
+                        segs,
+                        &ch.steps,
+                        false,
+                        ends[0] == EndKind::Boundary,
+                        ends[1] == EndKind::Boundary,
+                    );
+                    make_path(
+                        &mut paths,
+                        PathKind::BoundaryLoopInside,
+                        None,
+                        &ch.steps,
+                        false,
+                        ch.ends,
+                        vec![ch.turns[0].1],
+                        cut,
+                    );
+                    tanglement_kind_of_path.push(None);
+                    continue;
+                }
+                if other < ci {
+                    continue; // handled with its partner
+                }
+                let v = ch.turns[0].1;
+                // Each BLI = half toward its first end + half toward its last end, joined at v.
+                // Orient halves from the end to v, as (steps, end kind).
+                let halves = |c: &Chain| -> [(Vec<(u32, u8)>, EndKind); 2] {
+                    let t = c.turns[0].0;
+                    let ends = c.ends.expect("open");
+                    let first: Vec<(u32, u8)> = c.steps[..=t].to_vec();
+                    let last: Vec<(u32, u8)> = c.steps[t + 1..]
+                        .iter()
+                        .rev()
+                        .map(|&(p, e)| (p, 1 - e))
+                        .collect();
+                    [(first, ends[0]), (last, ends[1])]
+                };
+                let (ha, hb) = (halves(ch), halves(&chains[other]));
+                for kind in [EndKind::Boundary, EndKind::Inside] {
+                    let a = ha.iter().find(|h| h.1 == kind);
+                    let b = hb.iter().find(|h| h.1 == kind);
+                    let (Some(a), Some(b)) = (a, b) else { continue };
+                    // a: end -> v; then b reversed: v -> end.
+                    let mut steps = a.0.clone();
+                    steps.extend(b.0.iter().rev().map(|&(p, e)| (p, 1 - e)));
+                    let is_b = kind == EndKind::Boundary;
+                    let mut cut = cut_of(crossings, segs, &a.0, false, is_b, false);
+                    cut.extend(cut_of(crossings, segs, &b.0, false, is_b, false));
+                    cut.sort_unstable();
+                    let mut odd = Vec::new();
+                    for e in cut {
+                        if odd.last() == Some(&e) {
+                            odd.pop();
+                        } else {
+                            odd.push(e);
+                        }
+                    }
+                    let pk = if is_b {
+                        PathKind::BoundaryBoundary
+                    } else {
+                        PathKind::InsideInside
+                    };
+                    make_path(
+                        &mut paths,
+                        pk,
+                        Some(PathKind::Cross),
+                        &steps,
+                        false,
+                        Some([kind, kind]),
+                        vec![v],
+                        odd,
+                    );
+                    tanglement_kind_of_path.push(Some("CROSS"));
+                }
+            }
+        }
+    }
+
+    // Correspondence and tanglements.
+    let mut tanglements: Vec<Tanglement> = Vec::new();
+    for i in 0..paths.len() {
+        let first = paths[i].pieces[0];
+        paths[i].corresponds_to = path_of_piece[partner(first) as usize];
+    }
+    for i in 0..paths.len() {
+        if paths[i].tanglement != u32::MAX {
+            continue;
+        }
+        let j = paths[i].corresponds_to as usize;
+        let members: Vec<u32> = if j == i || j >= paths.len() {
+            vec![i as u32]
+        } else {
+            vec![i as u32, j as u32]
+        };
+        let kind = match tanglement_kind_of_path[i] {
+            Some(k) => k.to_string(),
+            None => tanglement_kind(&paths[i], members.get(1).map(|&m| &paths[m as usize])),
+        };
+        let mut lv: Vec<u32> = members
+            .iter()
+            .flat_map(|&m| paths[m as usize].loop_vertices.clone())
+            .collect();
+        lv.sort_unstable();
+        lv.dedup();
+        let objs = [
+            paths[members[0] as usize].object,
+            paths[*members.last().expect("non-empty") as usize].object,
+        ];
+        let t = tanglements.len() as u32;
+        for &m in &members {
+            paths[m as usize].tanglement = t;
+        }
+        tanglements.push(Tanglement {
+            kind,
+            paths: members,
+            objects: [objs[0].min(objs[1]), objs[0].max(objs[1])],
+            loop_vertices: lv,
+        });
+    }
+    Ok((paths, tanglements))
+}
+
+fn tanglement_kind(p: &Path, q: Option<&Path>) -> String {
+    use PathKind::*;
+    match (p.kind, q.map(|q| q.kind)) {
+        (Closed, _) => "CLOSED".into(),
+        (LoopLoop, _) => "LL".into(),
+        (BoundaryLoopInside, _) => "BLI".into(),
+        (BoundaryLoopBoundary, _) => "BLB".into(),
+        (BoundaryLoopLoopBoundary, _) => "BLLB".into(),
+        (a, Some(b)) => {
+            let mut names = [a.name(), b.name()];
+            names.sort_by_key(|n| match *n {
+                "BB" => 0,
+                "BI" => 1,
+                _ => 2,
+            });
+            format!("{}{}", names[0], names[1])
+        }
+        (a, None) => a.name().into(),
+    }
+}

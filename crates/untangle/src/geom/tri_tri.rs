@@ -1,0 +1,217 @@
+//! Edge-triangle crossings and triangle-triangle intersection, decided with the symbolically
+//! perturbed predicates of [`super::predicates`].
+//!
+//! A crossing of edge `e` through triangle `t` (no shared vertex) is the elementary event of the
+//! global intersection analysis (Wicke et al. 2006, Sec. 4): every intersection segment between
+//! two triangles ends at two crossings, or at one crossing and a shared (loop) vertex.
+
+use super::predicates::orient3d_sos;
+use super::{Real, Vec3};
+
+/// Whether the edge `(p, q)` crosses the triangle `(a, b, c)`, under the symbolic perturbation.
+///
+/// `ids` are the global indices of `[p, q, a, b, c]`; they must be pairwise distinct (an edge that
+/// shares a vertex with the triangle can only touch it at that vertex and never crosses it).
+/// Returns `false` when indices repeat.
+#[inline]
+pub fn edge_crosses_triangle(
+    p: &Vec3,
+    q: &Vec3,
+    a: &Vec3,
+    b: &Vec3,
+    c: &Vec3,
+    ids: [u32; 5],
+) -> bool {
+    let [ip, iq, ia, ib, ic] = ids;
+    let sp = orient3d_sos([a, b, c, p], [ia, ib, ic, ip]);
+    let sq = orient3d_sos([a, b, c, q], [ia, ib, ic, iq]);
+    if sp == 0 || sq == 0 || sp == sq {
+        return false;
+    }
+    let s1 = orient3d_sos([p, q, a, b], [ip, iq, ia, ib]);
+    let s2 = orient3d_sos([p, q, b, c], [ip, iq, ib, ic]);
+    if s1 != s2 || s1 == 0 {
+        return false;
+    }
+    let s3 = orient3d_sos([p, q, c, a], [ip, iq, ic, ia]);
+    s3 == s1
+}
+
+/// A quick floating-point rejection test for `edge_crosses_triangle`: returns `false` only when
+/// both edge endpoints are certainly strictly on the same side of the triangle's plane.
+///
+/// Uses a conservative forward error bound, so it never rejects a true crossing.
+#[inline]
+pub fn edge_may_cross_plane(p: &Vec3, q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> bool {
+    let n = (b - a).cross(&(c - a));
+    let dp = n.dot(&(p - a));
+    let dq = n.dot(&(q - a));
+    if (dp > 0.0) != (dq > 0.0) || dp == 0.0 || dq == 0.0 {
+        return true;
+    }
+    // Error bound of the dot-of-cross evaluation (a few ulps of the magnitude products).
+    let mag = |d: &Vec3| d.x.abs() + d.y.abs() + d.z.abs();
+    let scale = mag(&(b - a)) * mag(&(c - a));
+    let bound = 1e-14 * scale * (mag(&(p - a)) + mag(&(q - a)));
+    dp.abs() <= bound || dq.abs() <= bound
+}
+
+/// Parameter `s` in `[0, 1]` along `(p, q)` and barycentric coordinates `(u, v, w)` on `(a, b, c)`
+/// of the point where the edge meets the triangle's plane (floating point; used for positions
+/// and reports, never for decisions). Degenerate input is clamped to finite values.
+pub fn edge_triangle_point(p: &Vec3, q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> (Real, [Real; 3]) {
+    let n = (b - a).cross(&(c - a));
+    let dp = n.dot(&(p - a));
+    let dq = n.dot(&(q - a));
+    let s = if dp != dq { dp / (dp - dq) } else { 0.5 };
+    let s = if s.is_finite() {
+        s.clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    let x = p + (q - p) * s;
+    (s, barycentric(&x, a, b, c))
+}
+
+/// Barycentric coordinates of the projection of `x` onto the plane of `(a, b, c)`.
+pub fn barycentric(x: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> [Real; 3] {
+    let v0 = b - a;
+    let v1 = c - a;
+    let v2 = x - a;
+    let d00 = v0.dot(&v0);
+    let d01 = v0.dot(&v1);
+    let d11 = v1.dot(&v1);
+    let d20 = v2.dot(&v0);
+    let d21 = v2.dot(&v1);
+    let den = d00 * d11 - d01 * d01;
+    if den.abs() <= Real::MIN_POSITIVE || !den.is_finite() {
+        return [1.0 / 3.0; 3];
+    }
+    let v = (d11 * d20 - d01 * d21) / den;
+    let w = (d00 * d21 - d01 * d20) / den;
+    [1.0 - v - w, v, w]
+}
+
+/// Whether two triangles intersect, by the crossing rule: some edge of one crosses the other,
+/// with edges incident to a shared vertex skipped. Triangles sharing an edge never intersect.
+///
+/// This is the definition used throughout the analysis; it is written independently of the
+/// analysis pipeline so it can serve as its brute-force oracle.
+pub fn triangles_intersect(t1: [u32; 3], t2: [u32; 3], pos: &[Vec3]) -> bool {
+    let shared = t1.iter().filter(|v| t2.contains(v)).count();
+    if shared >= 2 {
+        return false;
+    }
+    let test = |ta: [u32; 3], tb: [u32; 3]| {
+        (0..3).any(|k| {
+            let (i, j) = (ta[k], ta[(k + 1) % 3]);
+            if tb.contains(&i) || tb.contains(&j) {
+                return false;
+            }
+            edge_crosses_triangle(
+                &pos[i as usize],
+                &pos[j as usize],
+                &pos[tb[0] as usize],
+                &pos[tb[1] as usize],
+                &pos[tb[2] as usize],
+                [i, j, tb[0], tb[1], tb[2]],
+            )
+        })
+    };
+    test(t1, t2) || test(t2, t1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn v(x: f64, y: f64, z: f64) -> Vec3 {
+        Vec3::new(x, y, z)
+    }
+
+    #[test]
+    fn simple_crossing_and_miss() {
+        let (a, b, c) = (v(0., 0., 0.), v(1., 0., 0.), v(0., 1., 0.));
+        let ids = [3, 4, 0, 1, 2];
+        assert!(edge_crosses_triangle(
+            &v(0.2, 0.2, -1.),
+            &v(0.2, 0.2, 1.),
+            &a,
+            &b,
+            &c,
+            ids
+        ));
+        assert!(!edge_crosses_triangle(
+            &v(0.8, 0.8, -1.),
+            &v(0.8, 0.8, 1.),
+            &a,
+            &b,
+            &c,
+            ids
+        ));
+        assert!(!edge_crosses_triangle(
+            &v(0.2, 0.2, 0.5),
+            &v(0.2, 0.2, 1.),
+            &a,
+            &b,
+            &c,
+            ids
+        ));
+        let (s, bc) = edge_triangle_point(&v(0.2, 0.2, -1.), &v(0.2, 0.2, 1.), &a, &b, &c);
+        assert!((s - 0.5).abs() < 1e-12);
+        assert!((bc[1] - 0.2).abs() < 1e-12 && (bc[2] - 0.2).abs() < 1e-12);
+    }
+
+    /// Exact rational crossing test for generic input (no ties): the oracle for the fast path.
+    fn exact_generic(p: &Vec3, q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Option<bool> {
+        let o =
+            |x: &Vec3, y: &Vec3, z: &Vec3, w: &Vec3| super::super::predicates::orient3d(x, y, z, w);
+        let (sp, sq) = (o(a, b, c, p), o(a, b, c, q));
+        let (s1, s2, s3) = (o(p, q, a, b), o(p, q, b, c), o(p, q, c, a));
+        if [sp, sq, s1, s2, s3].contains(&0.0) {
+            return None;
+        }
+        Some(sp.signum() != sq.signum() && s1.signum() == s2.signum() && s2.signum() == s3.signum())
+    }
+
+    proptest! {
+        #[test]
+        fn agrees_with_exact_test_on_generic_input(
+            pts in proptest::array::uniform5(proptest::array::uniform3(-1.0f64..1.0))
+        ) {
+            let p: Vec<Vec3> = pts.iter().map(|c| v(c[0], c[1], c[2])).collect();
+            if let Some(expected) = exact_generic(&p[0], &p[1], &p[2], &p[3], &p[4]) {
+                let got = edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], [0, 1, 2, 3, 4]);
+                prop_assert_eq!(got, expected);
+                if got {
+                    prop_assert!(edge_may_cross_plane(&p[0], &p[1], &p[2], &p[3], &p[4]));
+                }
+            }
+        }
+
+        /// A closed polyline crosses the closed surface of a tetrahedron an even number of times,
+        /// however degenerate the coordinates: the tie rule is globally consistent.
+        #[test]
+        fn closed_curve_crosses_closed_surface_evenly(
+            tet in proptest::array::uniform4(proptest::array::uniform3(-2i32..=2)),
+            curve in proptest::collection::vec(proptest::array::uniform3(-2i32..=2), 3..7),
+        ) {
+            let mut pos: Vec<Vec3> = tet.iter().map(|c| v(c[0] as f64, c[1] as f64, c[2] as f64)).collect();
+            let base = pos.len() as u32;
+            pos.extend(curve.iter().map(|c| v(c[0] as f64, c[1] as f64, c[2] as f64)));
+            let faces = [[0u32, 1, 2], [0, 3, 1], [1, 3, 2], [2, 3, 0]];
+            let n = curve.len() as u32;
+            let mut count = 0;
+            for k in 0..n {
+                let (i, j) = (base + k, base + (k + 1) % n);
+                for f in faces {
+                    if edge_crosses_triangle(&pos[i as usize], &pos[j as usize], &pos[f[0] as usize], &pos[f[1] as usize], &pos[f[2] as usize], [i, j, f[0], f[1], f[2]]) {
+                        count += 1;
+                    }
+                }
+            }
+            prop_assert_eq!(count % 2, 0);
+        }
+    }
+}

@@ -1,0 +1,22 @@
+//! # untangle
+//!
+//! Find, classify and remove self- and inter-penetrations ("tanglements") in cloth and garment
+//! meshes. The library implements:
+//!
+//! - the global intersection analysis of Wicke et al. 2006 (Sec. 4) with the red/green colouring
+//!   of Cha & Ko 2022 (Sec. 3): [`analysis`];
+//! - procedural scenes with known answers: [`scenes`].
+//!
+//! It has no command-line or terminal dependencies; the `untangle` binary is built on top of it.
+
+#![warn(missing_docs)]
+
+pub mod analysis;
+pub mod broad;
+pub mod error;
+pub mod fsio;
+pub mod geom;
+pub mod mesh;
+pub mod scenes;
+
+pub use error::{Error, Result};
