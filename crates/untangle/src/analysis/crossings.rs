@@ -2,10 +2,21 @@
 //! 2006, Sec. 4, "intersections between cloth primitives"). Found once each, in parallel, with
 //! the symbolically perturbed predicates, and returned sorted so the result is identical for any
 //! thread count.
+//!
+//! Two passes share the work. Triangle pairs without a common vertex come from the BVH. Pairs that
+//! share a vertex `v` always have touching boxes, are the bulk of all candidates on cloth, and can
+//! only intersect if the fan of `v` folds over itself; a fan whose triangles all project with
+//! positive orientation along the fan's normal and wind exactly once (or, at a boundary vertex,
+//! less than once) around `v` is embedded in that projection, so none of its triangles can cross
+//! another (their projections are disjoint away from `v`, also under the symbolic perturbation).
+//! Only fans that fail this O(degree) certificate are tested pair by pair.
 
 use super::input::{AnalysisMesh, ObjectKind};
 use crate::broad::Bvh;
-use crate::geom::tri_tri::{edge_crosses_triangle, edge_may_cross_plane};
+use crate::geom::tri_tri::{
+    edge_crosses_triangle, edge_may_cross_plane, edge_may_overlap_projected,
+    triangles_may_intersect,
+};
 use crate::geom::{Aabb, Vec3};
 
 /// Edge `edge` passes through triangle `triangle`.
@@ -32,9 +43,8 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     let has_obstacles = mesh.objects.iter().any(|o| o.kind == ObjectKind::Obstacle);
     let mut out = bvh.self_pairs(|a, b, out: &mut Vec<Crossing>| {
         let (ta, tb) = (tris[a as usize], tris[b as usize]);
-        let shared = ta.iter().filter(|v| tb.contains(v)).count();
-        if shared >= 2 {
-            return;
+        if ta.iter().any(|v| tb.contains(v)) {
+            return; // shared vertex or edge: the fan pass decides
         }
         if has_obstacles
             && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
@@ -42,12 +52,128 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
         {
             return;
         }
+        let corners = |t: [u32; 3]| t.map(|v| pos[v as usize]);
+        if !triangles_may_intersect(&corners(ta), &corners(tb)) {
+            return;
+        }
         test_edges(a, b, ta, tb, mesh, pos, out);
         test_edges(b, a, tb, ta, mesh, pos, out);
     });
     let _ = topo;
+    out.extend(fan_crossings(mesh, pos, has_obstacles));
     out.sort_unstable();
     out
+}
+
+/// Crossings between triangles that share exactly one vertex, fan by fan.
+fn fan_crossings(mesh: &AnalysisMesh, pos: &[Vec3], has_obstacles: bool) -> Vec<Crossing> {
+    use rayon::prelude::*;
+    let topo = &mesh.topology;
+    let tris = &mesh.triangles;
+    (0..topo.num_vertices as u32)
+        .into_par_iter()
+        .with_min_len(512)
+        .fold(Vec::new, |mut out, v| {
+            let fan = topo.vertex_triangles.row(v as usize);
+            if fan.len() < 3 || fan_is_embedded(v, fan, tris, pos, topo.boundary_vertex[v as usize])
+            {
+                return out;
+            }
+            for (i, &a) in fan.iter().enumerate() {
+                for &b in &fan[i + 1..] {
+                    let (ta, tb) = (tris[a as usize], tris[b as usize]);
+                    if ta.iter().filter(|x| tb.contains(x)).count() != 1 {
+                        continue;
+                    }
+                    if has_obstacles
+                        && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
+                        && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
+                    {
+                        continue;
+                    }
+                    test_edges(a, b, ta, tb, mesh, pos, &mut out);
+                    test_edges(b, a, tb, ta, mesh, pos, &mut out);
+                }
+            }
+            out
+        })
+        .reduce(Vec::new, |mut a, b| {
+            a.extend(b);
+            a
+        })
+}
+
+/// Certificate that no two triangles of the fan of `v` intersect (see the module docs). `false`
+/// means "not certified", never "intersecting".
+fn fan_is_embedded(v: u32, fan: &[u32], tris: &[[u32; 3]], pos: &[Vec3], boundary: bool) -> bool {
+    let pv = pos[v as usize];
+    // Rotate each triangle so that v comes first: (v, x, y) keeps the orientation.
+    let corners = |t: u32| {
+        let tri = tris[t as usize];
+        let k = tri.iter().position(|&w| w == v).unwrap_or(0);
+        (
+            pos[tri[(k + 1) % 3] as usize] - pv,
+            pos[tri[(k + 2) % 3] as usize] - pv,
+        )
+    };
+    let mut n = Vec3::zeros();
+    for &t in fan {
+        let (x, y) = corners(t);
+        n += x.cross(&y);
+    }
+    let nn = n.norm();
+    // Written to be false for NaN as well.
+    if nn.is_nan() || nn <= 0.0 || !nn.is_finite() {
+        return false;
+    }
+    let n = n / nn;
+    // A 2D frame of the projection plane.
+    let e1 = if n.x.abs() < 0.9 {
+        Vec3::x()
+    } else {
+        Vec3::y()
+    };
+    let e1 = (e1 - n * e1.dot(&n)).normalize();
+    let e2 = n.cross(&e1);
+    let quadrant = |w: &Vec3| {
+        let (a, b) = (w.dot(&e1), w.dot(&e2));
+        match (a >= 0.0, b >= 0.0) {
+            (true, true) => 0i32,
+            (false, true) => 1,
+            (false, false) => 2,
+            (true, false) => 3,
+        }
+    };
+    // Every projected sector turns counter-clockwise by less than pi, so the number of
+    // quadrant boundaries it sweeps is (q(y) - q(x)) mod 4; their sum is four times the winding
+    // number of the fan around v.
+    let mut steps = 0;
+    for &t in fan {
+        let (x, y) = corners(t);
+        let c = x.cross(&y);
+        let h = c.dot(&n);
+        if h.is_nan() || h <= 1e-9 * c.norm() {
+            return false;
+        }
+        steps += (quadrant(&y) - quadrant(&x)).rem_euclid(4);
+    }
+    if boundary {
+        // An open fan winds less than once iff its sectors sweep fewer than four quadrant
+        // boundaries... unless it sweeps almost a full turn; then only the angle sum can tell.
+        if steps <= 2 {
+            return true;
+        }
+        let mut total = 0.0;
+        for &t in fan {
+            let (x, y) = corners(t);
+            let h = x.cross(&y).dot(&n);
+            let (xp, yp) = (x - n * x.dot(&n), y - n * y.dot(&n));
+            total += h.atan2(xp.dot(&yp));
+        }
+        total < std::f64::consts::TAU - 1e-6
+    } else {
+        steps == 4
+    }
 }
 
 /// Tests the edges of triangle `a` owned by `a` (the lower-indexed triangle beside the edge)
@@ -79,7 +205,8 @@ fn test_edges(
             continue;
         }
         let (p, q) = (&pos[i as usize], &pos[j as usize]);
-        if !edge_may_cross_plane(p, q, pa, pb, pc) {
+        if !edge_may_cross_plane(p, q, pa, pb, pc) || !edge_may_overlap_projected(p, q, pa, pb, pc)
+        {
             continue;
         }
         if edge_crosses_triangle(p, q, pa, pb, pc, [i, j, tb[0], tb[1], tb[2]]) {
