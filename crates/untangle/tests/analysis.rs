@@ -385,7 +385,7 @@ fn obstacles_are_analysed_against_cloth_only() {
     assert_eq!(sorted_pairs(&a), sorted_pairs(&b));
     let body = &am.objects[0].vertices;
     assert!(body.clone().all(|v| !a.coloring.red_vertex[v as usize]));
-    let report = Report::new(&am, &a);
+    let report = Report::new(&am, &pos, &a);
     assert_eq!(report.pairs_by_objects[0].relation, "cloth-obstacle");
 }
 
@@ -400,7 +400,7 @@ fn report_is_identical_for_one_and_two_threads() {
             .unwrap();
         pool.install(|| {
             let a = analyze(&am, &pos).unwrap();
-            let mut r = Report::new(&am, &a);
+            let mut r = Report::new(&am, &pos, &a);
             r.timing_ms = Default::default();
             (r, a.coloring, a.crossings)
         })
@@ -411,4 +411,73 @@ fn report_is_identical_for_one_and_two_threads() {
     assert_eq!(c1, c2);
     assert_eq!(x1, x2);
     assert!(r1.intersecting_triangle_pairs > 100);
+}
+
+/// BLI paths (outside Cha & Ko's method) get an inside region by Wicke's cone heuristic: a
+/// geodesic disc around the loop vertex reaching the nearer end of the path, split by the path.
+#[test]
+fn bli_paths_get_a_cone_region_near_their_loop_vertex() {
+    use untangle::analysis::{analyze_with, Options};
+    for lv in 1..4 {
+        let s = rudimentary::bli(lv);
+        let (am, pos) = AnalysisMesh::single(&s.meshes[0]).unwrap();
+        let plain = analyze(&am, &pos).unwrap();
+        assert_eq!(
+            plain.coloring.num_red_vertices(),
+            0,
+            "BLI does not colour by default"
+        );
+        let Region::Inside(inside) = &plain.regions[0] else {
+            panic!(
+                "level {lv}: BLI cone region expected, got {:?}",
+                plain.regions[0]
+            );
+        };
+        let apex = plain.paths[0].loop_vertices[0];
+        assert!(!inside.is_empty() && !inside.contains(&apex));
+        // The region is one side of the path: no inside vertex is joined to a disc vertex of
+        // the other side except across a cut edge — checked through the definition: every
+        // uncut edge from an inside vertex leads to an inside vertex, the apex, or out of the disc.
+        let far = inside
+            .iter()
+            .map(|&v| (pos[v as usize] - pos[apex as usize]).norm())
+            .fold(0.0, f64::max);
+        let cut = &plain.paths[0].cut_edges;
+        let topo = &am.topology;
+        for &v in inside {
+            for (&w, &e) in topo
+                .vertex_neighbors
+                .row(v as usize)
+                .iter()
+                .zip(topo.vertex_edges.row(v as usize))
+            {
+                let near = (pos[w as usize] - pos[apex as usize]).norm() < 0.5 * far;
+                if near && !cut.contains(&e) && w != apex {
+                    assert!(
+                        inside.contains(&w),
+                        "level {lv}: region leaks from {v} to {w}"
+                    );
+                }
+            }
+        }
+        let red = analyze_with(
+            &am,
+            &pos,
+            &Options {
+                bli_regions_red: true,
+            },
+        )
+        .unwrap();
+        let reds: Vec<u32> = (0..am.num_vertices() as u32)
+            .filter(|&v| red.coloring.red_vertex[v as usize])
+            .collect();
+        assert_eq!(&reds, inside, "with the option the cone region is red");
+        let report = Report::new(&am, &pos, &plain);
+        let p = pos[apex as usize];
+        assert_eq!(
+            report.paths[0].location,
+            [p.x, p.y, p.z],
+            "reported at its loop vertex"
+        );
+    }
 }

@@ -70,38 +70,45 @@ fn fan_crossings(mesh: &AnalysisMesh, pos: &[Vec3], has_obstacles: bool) -> Vec<
     use rayon::prelude::*;
     let topo = &mesh.topology;
     let tris = &mesh.triangles;
-    (0..topo.num_vertices as u32)
-        .into_par_iter()
-        .with_min_len(512)
-        .fold(Vec::new, |mut out, v| {
-            let fan = topo.vertex_triangles.row(v as usize);
-            if fan.len() < 3 || fan_is_embedded(v, fan, tris, pos, topo.boundary_vertex[v as usize])
-            {
-                return out;
-            }
-            for (i, &a) in fan.iter().enumerate() {
-                for &b in &fan[i + 1..] {
-                    let (ta, tb) = (tris[a as usize], tris[b as usize]);
-                    if ta.iter().filter(|x| tb.contains(x)).count() != 1 {
-                        continue;
-                    }
-                    if has_obstacles
-                        && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
-                        && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
-                    {
-                        continue;
-                    }
-                    test_edges(a, b, ta, tb, mesh, pos, &mut out);
-                    test_edges(b, a, tb, ta, mesh, pos, &mut out);
+    let fan = |mut out: Vec<Crossing>, v: u32| {
+        let fan = topo.vertex_triangles.row(v as usize);
+        if fan.len() < 3 || fan_is_embedded(v, fan, tris, pos, topo.boundary_vertex[v as usize]) {
+            return out;
+        }
+        for (i, &a) in fan.iter().enumerate() {
+            for &b in &fan[i + 1..] {
+                let (ta, tb) = (tris[a as usize], tris[b as usize]);
+                if ta.iter().filter(|x| tb.contains(x)).count() != 1 {
+                    continue;
                 }
+                if has_obstacles
+                    && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
+                    && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
+                {
+                    continue;
+                }
+                test_edges(a, b, ta, tb, mesh, pos, &mut out);
+                test_edges(b, a, tb, ta, mesh, pos, &mut out);
             }
-            out
-        })
+        }
+        out
+    };
+    let n = topo.num_vertices as u32;
+    if n < PAR_VERTICES {
+        return (0..n).fold(Vec::new(), fan);
+    }
+    (0..n)
+        .into_par_iter()
+        .with_min_len(1024)
+        .fold(Vec::new, fan)
         .reduce(Vec::new, |mut a, b| {
             a.extend(b);
             a
         })
 }
+
+/// Meshes with fewer vertices run the fan pass on the calling thread (no thread start-up cost).
+const PAR_VERTICES: u32 = 8192;
 
 /// Certificate that no two triangles of the fan of `v` intersect (see the module docs). `false`
 /// means "not certified", never "intersecting".

@@ -56,6 +56,9 @@ pub struct PathReport {
     pub inside_vertices: Option<usize>,
     /// False for a partitioning kind that does not separate its mesh.
     pub separating: bool,
+    /// Where the path is, in world space: its first loop vertex, or the centroid of the
+    /// triangle holding its first piece.
+    pub location: [f64; 3],
 }
 
 /// One tanglement.
@@ -113,8 +116,23 @@ pub struct Report {
 }
 
 impl Report {
-    /// Builds the report.
-    pub fn new(mesh: &AnalysisMesh, a: &Analysis) -> Report {
+    /// Builds the report (`pos`: the positions the analysis ran on).
+    pub fn new(mesh: &AnalysisMesh, pos: &[crate::geom::Vec3], a: &Analysis) -> Report {
+        let location = |p: &super::Path| -> [f64; 3] {
+            let x = match p.loop_vertices.first() {
+                Some(&v) => pos[v as usize],
+                None => {
+                    let piece = p.pieces[0];
+                    let t = a.segments[(piece / 2) as usize].triangles[(piece % 2) as usize];
+                    mesh.triangles[t as usize]
+                        .iter()
+                        .map(|&v| pos[v as usize])
+                        .sum::<crate::geom::Vec3>()
+                        / 3.0
+                }
+            };
+            [x.x, x.y, x.z]
+        };
         let mut groups: BTreeMap<[u32; 2], usize> = BTreeMap::new();
         for s in &a.segments {
             let o0 = mesh.object_of_triangle[s.triangles[0] as usize];
@@ -158,6 +176,7 @@ impl Report {
                     _ => None,
                 },
                 separating: !matches!(r, Region::NotSeparating),
+                location: location(p),
             })
             .collect();
         let mut paths_by_kind = BTreeMap::new();
