@@ -14,8 +14,8 @@
 use super::input::{AnalysisMesh, ObjectKind};
 use crate::broad::Bvh;
 use crate::geom::tri_tri::{
-    edge_crosses_triangle, edge_may_cross_plane, edge_may_overlap_projected,
-    triangles_may_intersect,
+    edge_crosses_triangle, edge_may_overlap_projected, straddling_edge_crosses_triangle,
+    triangles_may_overlap_projected, CertifiedPlane,
 };
 use crate::geom::{Aabb, Vec3};
 
@@ -41,6 +41,21 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     let topo = &mesh.topology;
     let tris = &mesh.triangles;
     let has_obstacles = mesh.objects.iter().any(|o| o.kind == ObjectKind::Obstacle);
+    let planes: Vec<CertifiedPlane> = tris
+        .iter()
+        .map(|t| {
+            CertifiedPlane::new(
+                &pos[t[0] as usize],
+                &pos[t[1] as usize],
+                &pos[t[2] as usize],
+            )
+        })
+        .collect();
+    let ctx = Ctx {
+        mesh,
+        pos,
+        planes: &planes,
+    };
     let mut out = bvh.self_pairs(|a, b, out: &mut Vec<Crossing>| {
         let (ta, tb) = (tris[a as usize], tris[b as usize]);
         if ta.iter().any(|v| tb.contains(v)) {
@@ -52,22 +67,18 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
         {
             return;
         }
-        let corners = |t: [u32; 3]| t.map(|v| pos[v as usize]);
-        if !triangles_may_intersect(&corners(ta), &corners(tb)) {
-            return;
-        }
-        test_edges(a, b, ta, tb, mesh, pos, out);
-        test_edges(b, a, tb, ta, mesh, pos, out);
+        ctx.pair(a, b, out);
     });
     let _ = topo;
-    out.extend(fan_crossings(mesh, pos, has_obstacles));
+    out.extend(fan_crossings(&ctx, has_obstacles));
     out.sort_unstable();
     out
 }
 
 /// Crossings between triangles that share exactly one vertex, fan by fan.
-fn fan_crossings(mesh: &AnalysisMesh, pos: &[Vec3], has_obstacles: bool) -> Vec<Crossing> {
+fn fan_crossings(ctx: &Ctx, has_obstacles: bool) -> Vec<Crossing> {
     use rayon::prelude::*;
+    let (mesh, pos) = (ctx.mesh, ctx.pos);
     let topo = &mesh.topology;
     let tris = &mesh.triangles;
     let fan = |mut out: Vec<Crossing>, v: u32| {
@@ -87,8 +98,7 @@ fn fan_crossings(mesh: &AnalysisMesh, pos: &[Vec3], has_obstacles: bool) -> Vec<
                 {
                     continue;
                 }
-                test_edges(a, b, ta, tb, mesh, pos, &mut out);
-                test_edges(b, a, tb, ta, mesh, pos, &mut out);
+                ctx.pair(a, b, &mut out);
             }
         }
         out
@@ -183,44 +193,89 @@ fn fan_is_embedded(v: u32, fan: &[u32], tris: &[[u32; 3]], pos: &[Vec3], boundar
     }
 }
 
-/// Tests the edges of triangle `a` owned by `a` (the lower-indexed triangle beside the edge)
-/// against triangle `b`, so that every crossing is computed exactly once.
-#[inline]
-fn test_edges(
-    a: u32,
-    b: u32,
-    ta: [u32; 3],
-    tb: [u32; 3],
-    mesh: &AnalysisMesh,
-    pos: &[Vec3],
-    out: &mut Vec<Crossing>,
-) {
-    let topo = &mesh.topology;
-    let edges = topo.triangle_edges[a as usize];
-    let (pa, pb, pc) = (
-        &pos[tb[0] as usize],
-        &pos[tb[1] as usize],
-        &pos[tb[2] as usize],
-    );
-    for k in 0..3 {
-        let e = edges[k];
-        if topo.edge_triangles[e as usize][0] != a {
-            continue;
+/// What the pair kernel needs.
+struct Ctx<'a> {
+    mesh: &'a AnalysisMesh,
+    pos: &'a [Vec3],
+    planes: &'a [CertifiedPlane],
+}
+
+impl Ctx<'_> {
+    /// All crossings between triangles `a` and `b` (not sharing an edge), each edge tested only by
+    /// its owner (the lower-indexed triangle beside it), so every crossing is found exactly once.
+    ///
+    /// Filters, all conservative: certified plane sides reject a pair with one triangle strictly
+    /// on one side of the other's plane; pairs that look coplanar go through a 2D separating-axis
+    /// test; an edge with certified opposite sides needs only the three side tests.
+    #[inline]
+    fn pair(&self, a: u32, b: u32, out: &mut Vec<Crossing>) {
+        let tris = &self.mesh.triangles;
+        let (ta, tb) = (tris[a as usize], tris[b as usize]);
+        let p = |v: u32| &self.pos[v as usize];
+        let da = ta.map(|v| self.planes[b as usize].side(p(v)));
+        if da[0] != 0 && da[0] == da[1] && da[1] == da[2] {
+            return;
         }
-        let (i, j) = (ta[k], ta[(k + 1) % 3]);
-        if tb.contains(&i) || tb.contains(&j) {
-            continue;
+        let db = tb.map(|v| self.planes[a as usize].side(p(v)));
+        if db[0] != 0 && db[0] == db[1] && db[1] == db[2] {
+            return;
         }
-        let (p, q) = (&pos[i as usize], &pos[j as usize]);
-        if !edge_may_cross_plane(p, q, pa, pb, pc) || !edge_may_overlap_projected(p, q, pa, pb, pc)
+        if (da.contains(&0) || db.contains(&0))
+            && !triangles_may_overlap_projected(&ta.map(|v| *p(v)), &tb.map(|v| *p(v)))
         {
-            continue;
+            return;
         }
-        if edge_crosses_triangle(p, q, pa, pb, pc, [i, j, tb[0], tb[1], tb[2]]) {
-            out.push(Crossing {
-                edge: e,
-                triangle: b,
-            });
+        self.edges(a, b, ta, tb, da, out);
+        self.edges(b, a, tb, ta, db, out);
+    }
+
+    /// Edges of `a` (owned by `a`, not incident to `b`) against triangle `b`; `sides` are the
+    /// certified sides of `a`'s corners with respect to `b`'s plane.
+    #[inline]
+    fn edges(
+        &self,
+        a: u32,
+        b: u32,
+        ta: [u32; 3],
+        tb: [u32; 3],
+        sides: [i8; 3],
+        out: &mut Vec<Crossing>,
+    ) {
+        let topo = &self.mesh.topology;
+        let pos = self.pos;
+        let edges = topo.triangle_edges[a as usize];
+        let (pa, pb, pc) = (
+            &pos[tb[0] as usize],
+            &pos[tb[1] as usize],
+            &pos[tb[2] as usize],
+        );
+        for k in 0..3 {
+            let (sp, sq) = (sides[k], sides[(k + 1) % 3]);
+            if sp != 0 && sp == sq {
+                continue;
+            }
+            let e = edges[k];
+            if topo.edge_triangles[e as usize][0] != a {
+                continue;
+            }
+            let (i, j) = (ta[k], ta[(k + 1) % 3]);
+            if tb.contains(&i) || tb.contains(&j) {
+                continue;
+            }
+            let (p, q) = (&pos[i as usize], &pos[j as usize]);
+            let ids = [i, j, tb[0], tb[1], tb[2]];
+            let crosses = if sp != 0 && sq != 0 {
+                straddling_edge_crosses_triangle(p, q, pa, pb, pc, ids)
+            } else {
+                edge_may_overlap_projected(p, q, pa, pb, pc)
+                    && edge_crosses_triangle(p, q, pa, pb, pc, ids)
+            };
+            if crosses {
+                out.push(Crossing {
+                    edge: e,
+                    triangle: b,
+                });
+            }
         }
     }
 }

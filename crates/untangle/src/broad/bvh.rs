@@ -12,7 +12,7 @@ use crate::geom::Aabb;
 
 const LEAF_SIZE: usize = 4;
 /// Subtrees with fewer primitives than this are traversed sequentially.
-const PAR_CUTOFF: u32 = 2048;
+const PAR_CUTOFF: u32 = 256;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {

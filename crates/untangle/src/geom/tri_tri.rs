@@ -37,6 +37,66 @@ pub fn edge_crosses_triangle(
     s3 == s1
 }
 
+/// [`edge_crosses_triangle`] for an edge whose endpoints are already known to lie strictly on
+/// opposite sides of the triangle's plane (e.g. from a certified floating-point test): only the
+/// three side tests remain, with the same symbolic perturbation, so the answer is identical.
+#[inline]
+pub fn straddling_edge_crosses_triangle(
+    p: &Vec3,
+    q: &Vec3,
+    a: &Vec3,
+    b: &Vec3,
+    c: &Vec3,
+    ids: [u32; 5],
+) -> bool {
+    let [ip, iq, ia, ib, ic] = ids;
+    let s1 = orient3d_sos([p, q, a, b], [ip, iq, ia, ib]);
+    let s2 = orient3d_sos([p, q, b, c], [ip, iq, ib, ic]);
+    if s1 != s2 || s1 == 0 {
+        return false;
+    }
+    orient3d_sos([p, q, c, a], [ip, iq, ic, ia]) == s1
+}
+
+/// A triangle's plane with a certified floating-point side test.
+#[derive(Clone, Copy, Debug)]
+pub struct CertifiedPlane {
+    n: Vec3,
+    a: Vec3,
+    k: Real,
+}
+
+impl CertifiedPlane {
+    /// The plane of triangle `(a, b, c)`.
+    #[inline]
+    pub fn new(a: &Vec3, b: &Vec3, c: &Vec3) -> Self {
+        let l1 = |d: &Vec3| d.x.abs() + d.y.abs() + d.z.abs();
+        let (ab, ac) = (b - a, c - a);
+        CertifiedPlane {
+            n: ab.cross(&ac),
+            a: *a,
+            // Forward error bound of n . (p - a), over |p - a|_1 (generously rounded up).
+            k: 1e-14 * l1(&ab) * l1(&ac),
+        }
+    }
+
+    /// `+1` or `-1` when `p` is certainly strictly on that side (matching the sign of the exact
+    /// `n . (p - a)`, which is `-orient3d(a, b, c, p)`), `0` when too close to tell.
+    #[inline]
+    pub fn side(&self, p: &Vec3) -> i8 {
+        let d = p - self.a;
+        let s = self.n.dot(&d);
+        let tol = self.k * (d.x.abs() + d.y.abs() + d.z.abs());
+        if s > tol {
+            1
+        } else if s < -tol {
+            -1
+        } else {
+            0
+        }
+    }
+}
+
 /// A quick floating-point rejection test for `edge_crosses_triangle`: returns `false` only when
 /// both edge endpoints are certainly strictly on the same side of the triangle's plane.
 ///
@@ -127,6 +187,14 @@ pub fn triangles_may_intersect(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
     if separated_by_plane(a, b) || separated_by_plane(b, a) {
         return false;
     }
+    triangles_may_overlap_projected(a, b)
+}
+
+/// The projected half of [`triangles_may_intersect`]: `false` only when the projections of the
+/// two triangles onto the coordinate plane most parallel to `b` are certainly separated along one
+/// of their six edge normals. Decides exactly coplanar pairs (flat cloth) without exact arithmetic.
+#[inline]
+pub fn triangles_may_overlap_projected(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
     let n = (b[1] - b[0]).cross(&(b[2] - b[0]));
     let (ax, ay, az) = (n.x.abs(), n.y.abs(), n.z.abs());
     let (u, v) = if az >= ax && az >= ay {
@@ -298,6 +366,35 @@ mod tests {
                 if got {
                     prop_assert!(edge_may_cross_plane(&p[0], &p[1], &p[2], &p[3], &p[4]));
                     prop_assert!(edge_may_overlap_projected(&p[0], &p[1], &p[2], &p[3], &p[4]));
+                }
+            }
+        }
+
+        /// Certified plane sides agree with the exact orientation, and the straddling shortcut
+        /// agrees with the full test whenever the sides are certified opposite.
+        #[test]
+        fn certified_sides_and_straddling_shortcut(
+            pts in proptest::array::uniform5(proptest::array::uniform3(-1.0f64..1.0)),
+            lattice in proptest::array::uniform5(proptest::array::uniform3(-2i32..=2)),
+        ) {
+            for p in [
+                pts.iter().map(|c| v(c[0], c[1], c[2])).collect::<Vec<_>>(),
+                lattice.iter().map(|c| v(c[0] as f64, c[1] as f64, c[2] as f64)).collect::<Vec<_>>(),
+            ] {
+                let plane = CertifiedPlane::new(&p[2], &p[3], &p[4]);
+                let exact = |x: &Vec3| -super::super::predicates::orient3d(&p[2], &p[3], &p[4], x).signum();
+                for x in [&p[0], &p[1]] {
+                    let s = plane.side(x);
+                    if s != 0 {
+                        prop_assert_eq!(s as f64, exact(x));
+                    }
+                }
+                let (sp, sq) = (plane.side(&p[0]), plane.side(&p[1]));
+                if sp != 0 && sq != 0 && sp != sq {
+                    prop_assert_eq!(
+                        straddling_edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], [0, 1, 2, 3, 4]),
+                        edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], [0, 1, 2, 3, 4])
+                    );
                 }
             }
         }
