@@ -18,6 +18,10 @@ pub struct ObjectReport {
     pub vertices: [u32; 2],
     /// First triangle index and count.
     pub triangles: [u32; 2],
+    /// Sewing panels (connected components of the uv layer; 1 without uv).
+    pub panels: Option<usize>,
+    /// World vertices with several uv copies.
+    pub seam_vertices: Option<usize>,
 }
 
 /// Intersecting pairs between two objects (the same object twice: self-intersections).
@@ -197,6 +201,8 @@ impl Report {
                     kind: o.kind,
                     vertices: [o.vertices.start, o.vertices.end - o.vertices.start],
                     triangles: [o.triangles.start, o.triangles.end - o.triangles.start],
+                    panels: None,
+                    seam_vertices: None,
                 })
                 .collect(),
             triangles: mesh.triangles.len(),
@@ -225,6 +231,20 @@ impl Report {
             red_star_triangles: a.coloring.red_star.len(),
             timing_ms: a.timing,
         }
+    }
+
+    /// Adds panel and seam counts of the cloth objects (`parts` in object order).
+    pub fn with_garment_info(mut self, parts: &[&crate::mesh::Mesh]) -> Report {
+        for (o, m) in self.objects.iter_mut().zip(parts) {
+            if o.kind != ObjectKind::Cloth {
+                continue;
+            }
+            if let Ok(g) = crate::mesh::Garment::new((*m).clone()) {
+                o.panels = Some(g.num_panels);
+                o.seam_vertices = Some(g.num_seam_vertices());
+            }
+        }
+        self
     }
 
     /// Pretty JSON text.

@@ -79,6 +79,7 @@ pub fn subdivide(mesh: &Mesh) -> Mesh {
                 name: g.name.clone(),
                 first: g.first * 4,
                 count: g.count * 4,
+                is_object: g.is_object,
             })
             .collect(),
         source: None,

@@ -32,6 +32,7 @@ fn core(name: &str, uv: &[[f64; 2]], world: &[[f64; 3]], tris: &[[u32; 3]], leve
             name: name.into(),
             first: 0,
             count: tris.len() as u32,
+            is_object: true,
         }],
         source: None,
     };
