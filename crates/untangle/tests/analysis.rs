@@ -217,6 +217,18 @@ fn every_scene_has_a_valid_rest_shape() {
 }
 
 #[test]
+fn skirt_has_two_sewn_panels_and_one_closed_tanglement_per_dent() {
+    for (n, dents) in [(16, 1), (32, 3)] {
+        let s = scenes::garment::skirt(n, dents);
+        let g = untangle::mesh::Garment::new(s.meshes[0].clone()).unwrap();
+        assert_eq!(g.num_panels, 2);
+        assert_eq!(g.num_seam_vertices(), 2 * (n / 2 + 1), "two side seams");
+        let (_, _, a) = analyse_checked(&s.meshes);
+        assert_eq!(kinds(&a), vec![("CLOSED".to_string(), dents)]);
+    }
+}
+
+#[test]
 fn folded_sheet_has_one_closed_tanglement_per_dent() {
     for dents in [1, 4, 9] {
         let s = scenes::folded::folded(60, dents);

@@ -6,6 +6,7 @@
 
 pub mod exploded;
 pub mod folded;
+pub mod garment;
 pub mod rudimentary;
 pub mod sheet;
 
@@ -35,7 +36,8 @@ pub const NAMES: &[&str] = &[
 ///
 /// For the loop-vertex cores (`ll`, `eight`, `cross`, `bli`) `size` is the number of subdivision
 /// levels (default 2); for `folded` it is the cells per side (default 125: 31,250 triangles, 4
-/// dents); for `exploded` the cells per side (default 14) and `seed` the random draw.
+/// dents); for `exploded` the cells per side (default 14) and `seed` the random draw; for `skirt`
+/// the cells around each panel (default 40, 3 dents).
 pub fn by_name(name: &str, size: Option<usize>, seed: u64) -> Option<Scene> {
     Some(match name {
         "closed" => closed(size.unwrap_or(16)),
@@ -47,6 +49,7 @@ pub fn by_name(name: &str, size: Option<usize>, seed: u64) -> Option<Scene> {
         "bibi" => rudimentary::bi_bi(size.unwrap_or(16)),
         "exploded" => exploded::exploded(seed, size.unwrap_or(14)),
         "folded" => folded::folded(size.unwrap_or(125), 4),
+        "skirt" => garment::skirt(size.unwrap_or(40), 3),
         _ => return None,
     })
 }
