@@ -84,6 +84,12 @@ fn main() {
             bench(&name, &s.meshes, runs);
         }
     }
+    if want("skirt") {
+        for n in [56, 112, 160, 224] {
+            let s = scenes::garment::skirt(n, 5);
+            bench(&format!("skirt n={n} (2 panels)"), &s.meshes, runs.min(11));
+        }
+    }
     if want("exploded") {
         for seed in [0, 1, 2] {
             let s = scenes::exploded::exploded(seed, 14);

@@ -191,6 +191,7 @@ fn every_scene_has_a_valid_rest_shape() {
         rudimentary::bi_bi(8),
         scenes::exploded::exploded(0, 14),
         scenes::folded::folded(20, 2),
+        scenes::garment::skirt(16, 2),
     ];
     for lv in 0..3 {
         all.extend([
