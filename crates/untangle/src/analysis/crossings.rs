@@ -56,18 +56,24 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
         pos,
         planes: &planes,
     };
-    let mut out = bvh.self_pairs(|a, b, out: &mut Vec<Crossing>| {
-        let (ta, tb) = (tris[a as usize], tris[b as usize]);
+    // Triangles and planes in BVH slot order: the traversal reads them from contiguous memory.
+    let order = bvh.order();
+    let slot_tris: Vec<[u32; 3]> = order.iter().map(|&t| tris[t as usize]).collect();
+    let slot_planes: Vec<CertifiedPlane> = order.iter().map(|&t| planes[t as usize]).collect();
+    let mut out = bvh.self_slot_pairs(|sa, sb, out: &mut Vec<Crossing>| {
+        let (ta, tb) = (slot_tris[sa as usize], slot_tris[sb as usize]);
         if ta.iter().any(|v| tb.contains(v)) {
             return; // shared vertex or edge: the fan pass decides
         }
+        let (a, b) = (order[sa as usize], order[sb as usize]);
         if has_obstacles
             && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
             && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
         {
             return;
         }
-        ctx.pair(a, b, out);
+        let (pa, pb) = (&slot_planes[sa as usize], &slot_planes[sb as usize]);
+        ctx.pair_with(a, b, ta, tb, pa, pb, out);
     });
     let _ = topo;
     out.extend(fan_crossings(&ctx, has_obstacles));
@@ -83,7 +89,8 @@ fn fan_crossings(ctx: &Ctx, has_obstacles: bool) -> Vec<Crossing> {
     let tris = &mesh.triangles;
     let fan = |mut out: Vec<Crossing>, v: u32| {
         let fan = topo.vertex_triangles.row(v as usize);
-        if fan.len() < 3 || fan_is_embedded(v, fan, tris, pos, topo.boundary_vertex[v as usize]) {
+        let boundary = topo.boundary_vertex[v as usize];
+        if fan.len() < 3 || fan_is_embedded(v, fan, tris, pos, ctx.planes, boundary) {
             return out;
         }
         for (i, &a) in fan.iter().enumerate() {
@@ -122,9 +129,17 @@ const PAR_VERTICES: u32 = 8192;
 
 /// Certificate that no two triangles of the fan of `v` intersect (see the module docs). `false`
 /// means "not certified", never "intersecting".
-fn fan_is_embedded(v: u32, fan: &[u32], tris: &[[u32; 3]], pos: &[Vec3], boundary: bool) -> bool {
+fn fan_is_embedded(
+    v: u32,
+    fan: &[u32],
+    tris: &[[u32; 3]],
+    pos: &[Vec3],
+    planes: &[CertifiedPlane],
+    boundary: bool,
+) -> bool {
     let pv = pos[v as usize];
-    // Rotate each triangle so that v comes first: (v, x, y) keeps the orientation.
+    // Rotate each triangle so that v comes first: (v, x, y) keeps the orientation (and the plane
+    // normal, which is invariant under cyclic rotation).
     let corners = |t: u32| {
         let tri = tris[t as usize];
         let k = tri.iter().position(|&w| w == v).unwrap_or(0);
@@ -135,8 +150,7 @@ fn fan_is_embedded(v: u32, fan: &[u32], tris: &[[u32; 3]], pos: &[Vec3], boundar
     };
     let mut n = Vec3::zeros();
     for &t in fan {
-        let (x, y) = corners(t);
-        n += x.cross(&y);
+        n += planes[t as usize].normal();
     }
     let nn = n.norm();
     // Written to be false for NaN as well.
@@ -166,12 +180,12 @@ fn fan_is_embedded(v: u32, fan: &[u32], tris: &[[u32; 3]], pos: &[Vec3], boundar
     // number of the fan around v.
     let mut steps = 0;
     for &t in fan {
-        let (x, y) = corners(t);
-        let c = x.cross(&y);
+        let c = planes[t as usize].normal();
         let h = c.dot(&n);
         if h.is_nan() || h <= 1e-9 * c.norm() {
             return false;
         }
+        let (x, y) = corners(t);
         steps += (quadrant(&y) - quadrant(&x)).rem_euclid(4);
     }
     if boundary {
@@ -211,12 +225,28 @@ impl Ctx<'_> {
     fn pair(&self, a: u32, b: u32, out: &mut Vec<Crossing>) {
         let tris = &self.mesh.triangles;
         let (ta, tb) = (tris[a as usize], tris[b as usize]);
+        let (pa, pb) = (&self.planes[a as usize], &self.planes[b as usize]);
+        self.pair_with(a, b, ta, tb, pa, pb, out);
+    }
+
+    /// [`Ctx::pair`] with the triangles' corners and planes already at hand.
+    #[inline]
+    fn pair_with(
+        &self,
+        a: u32,
+        b: u32,
+        ta: [u32; 3],
+        tb: [u32; 3],
+        plane_a: &CertifiedPlane,
+        plane_b: &CertifiedPlane,
+        out: &mut Vec<Crossing>,
+    ) {
         let p = |v: u32| &self.pos[v as usize];
-        let da = ta.map(|v| self.planes[b as usize].side(p(v)));
+        let da = ta.map(|v| plane_b.side(p(v)));
         if da[0] != 0 && da[0] == da[1] && da[1] == da[2] {
             return;
         }
-        let db = tb.map(|v| self.planes[a as usize].side(p(v)));
+        let db = tb.map(|v| plane_a.side(p(v)));
         if db[0] != 0 && db[0] == db[1] && db[1] == db[2] {
             return;
         }

@@ -148,12 +148,28 @@ impl Bvh {
         T: Send,
         F: Fn(u32, u32, &mut Vec<T>) + Sync,
     {
+        let order = &self.order;
+        self.self_slot_pairs(|a, b, out| visit(order[a as usize], order[b as usize], out))
+    }
+
+    /// Like [`Bvh::self_pairs`], but passes *slot* indices (positions in [`Bvh::order`]), so a
+    /// caller can keep per-primitive data in slot order and read it from contiguous memory.
+    pub fn self_slot_pairs<T, F>(&self, visit: F) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+    {
         if self.nodes.is_empty() {
             return Vec::new();
         }
         let mut out = Vec::new();
         self.self_rec(0, &visit, &mut out);
         out
+    }
+
+    /// The primitive stored in each slot (slots are leaf order, close primitives are close).
+    pub fn order(&self) -> &[u32] {
+        &self.order
     }
 
     fn self_rec<T: Send, F: Fn(u32, u32, &mut Vec<T>) + Sync>(
@@ -169,7 +185,7 @@ impl Bvh {
             for i in s..e {
                 for j in i + 1..e {
                     if self.slot_aabbs[i].overlaps(&self.slot_aabbs[j]) {
-                        visit(self.order[i], self.order[j], out);
+                        visit(i as u32, j as u32, out);
                     }
                 }
             }
@@ -194,7 +210,7 @@ impl Bvh {
                 },
                 || {
                     let mut o = Vec::new();
-                    self.cross_rec(self, l, r, visit, &mut o);
+                    self.cross_rec_slots(self, l, r, visit, &mut o);
                     o
                 },
             );
@@ -208,7 +224,7 @@ impl Bvh {
         } else {
             self.self_rec(l, visit, out);
             self.self_rec(r, visit, out);
-            self.cross_rec(self, l, r, visit, out);
+            self.cross_rec_slots(self, l, r, visit, out);
         }
     }
 
@@ -222,12 +238,15 @@ impl Bvh {
         if self.nodes.is_empty() || other.nodes.is_empty() {
             return Vec::new();
         }
+        let (oa, ob) = (&self.order, &other.order);
+        let visit = |i: u32, j: u32, out: &mut Vec<T>| visit(oa[i as usize], ob[j as usize], out);
         let mut out = Vec::new();
-        self.cross_rec(other, 0, 0, &visit, &mut out);
+        self.cross_rec_slots(other, 0, 0, &visit, &mut out);
         out
     }
 
-    fn cross_rec<T: Send, F: Fn(u32, u32, &mut Vec<T>) + Sync>(
+    /// Cross traversal reporting slot indices of `self` and `other`.
+    fn cross_rec_slots<T: Send, F: Fn(u32, u32, &mut Vec<T>) + Sync>(
         &self,
         other: &Bvh,
         a: usize,
@@ -244,7 +263,7 @@ impl Bvh {
                 let bi = &self.slot_aabbs[i as usize];
                 for j in nb.start..nb.start + nb.count {
                     if bi.overlaps(&other.slot_aabbs[j as usize]) {
-                        visit(self.order[i as usize], other.order[j as usize], out);
+                        visit(i, j, out);
                     }
                 }
             }
@@ -259,20 +278,20 @@ impl Bvh {
                 let (mut o1, o2) = rayon::join(
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec(other, l, b, visit, &mut o);
+                        self.cross_rec_slots(other, l, b, visit, &mut o);
                         o
                     },
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec(other, r, b, visit, &mut o);
+                        self.cross_rec_slots(other, r, b, visit, &mut o);
                         o
                     },
                 );
                 o1.extend(o2);
                 out.extend(o1);
             } else {
-                self.cross_rec(other, l, b, visit, out);
-                self.cross_rec(other, r, b, visit, out);
+                self.cross_rec_slots(other, l, b, visit, out);
+                self.cross_rec_slots(other, r, b, visit, out);
             }
         } else {
             let (l, r) = (nb.start as usize, nb.right as usize);
@@ -280,20 +299,20 @@ impl Bvh {
                 let (mut o1, o2) = rayon::join(
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec(other, a, l, visit, &mut o);
+                        self.cross_rec_slots(other, a, l, visit, &mut o);
                         o
                     },
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec(other, a, r, visit, &mut o);
+                        self.cross_rec_slots(other, a, r, visit, &mut o);
                         o
                     },
                 );
                 o1.extend(o2);
                 out.extend(o1);
             } else {
-                self.cross_rec(other, a, l, visit, out);
-                self.cross_rec(other, a, r, visit, out);
+                self.cross_rec_slots(other, a, l, visit, out);
+                self.cross_rec_slots(other, a, r, visit, out);
             }
         }
     }

@@ -80,6 +80,12 @@ impl CertifiedPlane {
         }
     }
 
+    /// The (unnormalised) normal `(b - a) x (c - a)`.
+    #[inline]
+    pub fn normal(&self) -> Vec3 {
+        self.n
+    }
+
     /// `+1` or `-1` when `p` is certainly strictly on that side (matching the sign of the exact
     /// `n . (p - a)`, which is `-orient3d(a, b, c, p)`), `0` when too close to tell.
     #[inline]
