@@ -7,3 +7,11 @@
 //! onto its corrected iso-surface by Newton steps interleaved with tangential relaxation (Sec. 6.3).
 
 pub mod operators;
+pub mod field;
+pub mod grid;
+pub mod hrbf;
+pub mod sampling;
+pub mod shapes;
+pub mod thickness;
+
+pub use field::{GarmentField, LayerField};

@@ -289,7 +289,6 @@ fn nnls_free_first(gens: &[FieldVec], x: &FieldVec, n: usize) -> FieldVec {
             if cand[enter] <= 0.0 && z[enter] == 0.0 && passive[enter] {
                 // Degenerate entry (round-off): never re-enter this generator.
                 passive[enter] = false;
-                blocked[enter] = true;
                 break;
             }
             let mut alpha = 1.0f64;
@@ -313,8 +312,9 @@ fn nnls_free_first(gens: &[FieldVec], x: &FieldVec, n: usize) -> FieldVec {
                 }
             }
         }
-        blocked = [false; MAX_LAYERS];
-        blocked[enter] = !passive[enter];
+        let mut next = [false; MAX_LAYERS];
+        next[enter] = !passive[enter];
+        blocked = next;
     }
     combine(&z)
 }
