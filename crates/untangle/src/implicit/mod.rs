@@ -15,3 +15,11 @@ pub mod shapes;
 pub mod thickness;
 
 pub use field::{GarmentField, LayerField};
+pub mod layers;
+pub mod projection;
+pub mod separation;
+
+pub use layers::{untangle_layers, verify, FieldParams, GarmentInput, Params, Untangled};
+
+#[cfg(test)]
+mod tests;
