@@ -43,6 +43,35 @@ impl Grid {
         }
     }
 
+    /// Like [`Grid::build`], with a function that fills a whole row of nodes along x at once:
+    /// `eval_row(start, cell, out)` for the nodes `start + k * cell * e_x`.
+    pub fn build_rows(
+        bbox: &Aabb,
+        cell: f64,
+        eval_row: impl Fn(&Vec3, f64, &mut [(f64, Vec3)]) + Sync,
+    ) -> Grid {
+        let ext = bbox.extent();
+        let dims = [0, 1, 2].map(|a| ((ext[a] / cell).ceil() as usize + 1).max(2));
+        let origin = bbox.min;
+        let (nx, ny) = (dims[0], dims[1]);
+        let mut data = vec![[0f32; 4]; dims[0] * dims[1] * dims[2]];
+        data.par_chunks_mut(nx).enumerate().for_each(|(row, out)| {
+            let (j, k) = (row % ny, row / ny);
+            let p = origin + Vec3::new(0.0, j as f64, k as f64) * cell;
+            let mut buf = vec![(0.0, Vec3::zeros()); nx];
+            eval_row(&p, cell, &mut buf);
+            for (o, (v, g)) in out.iter_mut().zip(buf) {
+                *o = [v as f32, g.x as f32, g.y as f32, g.z as f32];
+            }
+        });
+        Grid {
+            origin,
+            cell,
+            dims,
+            data,
+        }
+    }
+
     /// The box covered by the grid.
     pub fn bbox(&self) -> Aabb {
         let ext = Vec3::new(

@@ -95,8 +95,10 @@ pub fn build_field(
             (e.x * e.y * e.z / params.max_nodes.max(8) as f64).cbrt()
         }
     };
-    let fg = Grid::build(&bbox, cell, |p| f.eval(p));
-    let hg = h.as_ref().map(|h| Grid::build(&bbox, cell, |p| h.eval(p)));
+    let fg = Grid::build_rows(&bbox, cell, |p, dx, out| f.eval_row(p, dx, out));
+    let hg = h
+        .as_ref()
+        .map(|h| Grid::build_rows(&bbox, cell, |p, dx, out| h.eval_row(p, dx, out)));
     let t4 = Instant::now();
     let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
     Ok(GarmentField {
