@@ -5,7 +5,8 @@
 //! and its spatial gradient `∇f̂_i = Σ_j ∂O_i/∂f_j ∇f_j` (eq. 14).
 //!
 //! [`project_layer`] moves every vertex towards its *own original iso-value* `ε_v = f_i(p_v)`
-//! (so details that the smooth field does not capture are kept) by Newton steps along `∇f̂_i`,
+//! (so details that the smooth field does not capture are kept; in contact `ε_v` is clamped
+//! towards the safe side, see [`target_iso`]) by Newton steps along `∇f̂_i`,
 //! interleaved with tangential relaxation (Sec. 6.3): for every edge, the minimal rotation about
 //! its centre that makes it tangent to the field and the symmetric stretch that restores its
 //! original length give target displacements of its two vertices; each vertex moves by the
@@ -241,7 +242,7 @@ pub fn project_layer(
                     return None;
                 }
                 let c = composer.evaluate(i, &pos[v])?;
-                let r = c.value - iso[v];
+                let r = c.value - target_iso(iso[v], c.run, i);
                 let g2 = c.gradient.norm_squared();
                 let nrm = if g2 > 0.0 {
                     c.gradient / g2.sqrt()
@@ -304,6 +305,19 @@ pub fn project_layer(
         residual,
         iterations,
         unconverged,
+    }
+}
+
+/// The iso-value a vertex is driven to: its own `ε_v` away from contact (details kept), clamped
+/// towards the safe side in contact, so that a detail never pushes a layer through the one it
+/// touches: towards the inside (`min(ε, 0)`) when merged with an outer layer, towards the outside
+/// (`max(ε, 0)`) when merged with an inner one, `0` when merged with both.
+pub fn target_iso(eps: f64, run: (usize, usize), i: usize) -> f64 {
+    match (run.0 < i, run.1 > i) {
+        (false, false) => eps,
+        (false, true) => eps.min(0.0),
+        (true, false) => eps.max(0.0),
+        (true, true) => 0.0,
     }
 }
 

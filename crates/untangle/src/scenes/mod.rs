@@ -4,6 +4,7 @@
 //! purpose (offsets such as `0.0123`), so the expected kinds do not hinge on the tie rule; the
 //! tie rule is exercised separately.
 
+pub mod outfit;
 pub mod sheet;
 
 pub use sheet::handkerchief;
