@@ -439,3 +439,44 @@ pub fn verify(
     }
     Ok(v)
 }
+
+/// Measured separation of every garment from the layer directly below it (the previous garment,
+/// or the body for the innermost), over the vertices that ended merged with it (Table 3
+/// analogue). `None` entries: nothing below (innermost garment without body).
+pub fn measure_separation(
+    body: Option<&Mesh>,
+    garments: &[GarmentInput],
+    out: &Untangled,
+    body_thickness: f64,
+) -> Vec<Option<super::separation::Separation>> {
+    use super::separation::{summarize, MeshDistance};
+    let offset = body.is_some() as usize;
+    (0..garments.len())
+        .map(|k| {
+            let (below_pos, below_tris, below_t, name): (&[Vec3], &[[u32; 3]], f64, String) =
+                if k > 0 {
+                    (
+                        &out.positions[k - 1],
+                        &garments[k - 1].mesh.triangles,
+                        garments[k - 1].thickness,
+                        garments[k - 1].mesh.name.clone(),
+                    )
+                } else if let Some(b) = body {
+                    (&b.positions, &b.triangles, body_thickness, "body".into())
+                } else {
+                    return None;
+                };
+            let expected = 0.5 * (garments[k].thickness + below_t);
+            let me = offset + k;
+            let md = MeshDistance::new(below_pos, below_tris);
+            let radius = 3.0 * expected + 0.01;
+            let d: Vec<f64> = out.positions[k]
+                .iter()
+                .zip(&out.projections[k].run)
+                .filter(|(_, run)| run.0 < me)
+                .filter_map(|(p, _)| md.distance_within(p, radius))
+                .collect();
+            Some(summarize(k, name, expected, d))
+        })
+        .collect()
+}
