@@ -26,6 +26,9 @@ pub struct GarmentField {
     pub num_samples: usize,
     /// Number of boundary samples of the HRBF `h_i`.
     pub num_boundary_samples: usize,
+    /// Influence region: `h_i < h_margin` (a small positive margin keeps the garment's own
+    /// boundary vertices, where `h_i = 0`, inside it).
+    pub h_margin: f64,
     /// Time of each step, in milliseconds: sampling, fit of `f`, fit of `h`, grids.
     pub timing_ms: [f64; 4],
 }
@@ -39,7 +42,7 @@ impl LayerField for GarmentField {
     fn influences(&self, p: &Vec3) -> bool {
         match &self.h {
             None => self.f.sample(p).is_some(),
-            Some(h) => matches!(h.sample(p), Some((v, _)) if v < 0.0),
+            Some(h) => matches!(h.sample(p), Some((v, _)) if v < self.h_margin),
         }
     }
 }

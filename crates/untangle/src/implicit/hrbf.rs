@@ -48,44 +48,77 @@ fn kernel(v: &Vec3) -> (f64, Vec3, nalgebra::Matrix3<f64>) {
 impl Hrbf {
     /// Fits the field to samples with unit normals (`f = 0`, `∇f = n`).
     pub fn fit(points: &[Vec3], normals: &[Vec3]) -> Result<Hrbf> {
-        let n = points.len();
-        if n == 0 || normals.len() != n {
+        Self::fit_mixed(points, normals, &[], &[])
+    }
+
+    /// Fits the field to Hermite samples (`f = 0`, `∇f = n`) plus value-only samples
+    /// (`f(q_k) = v_k`): the same generalised interpolation with fewer functionals at the
+    /// value-only points (their `β` is zero).
+    pub fn fit_mixed(
+        points: &[Vec3],
+        normals: &[Vec3],
+        value_points: &[Vec3],
+        values: &[f64],
+    ) -> Result<Hrbf> {
+        let nh = points.len();
+        let nvp = value_points.len();
+        let n = nh + nvp;
+        if n == 0 || normals.len() != nh || values.len() != nvp {
             return Err(Error::Parameter(
-                "an HRBF needs at least one sample with a normal".into(),
+                "an HRBF needs at least one sample, with a normal or a value each".into(),
             ));
         }
-        let m = 4 * n;
+        let m = 4 * nh + nvp;
+        let all: Vec<Vec3> = points.iter().chain(value_points).copied().collect();
         // Centre and scale the samples for conditioning; undone at the end.
-        let centre = points.iter().sum::<Vec3>() / n as f64;
-        let scale = points
+        let centre = all.iter().sum::<Vec3>() / n as f64;
+        let scale = all
             .iter()
             .map(|p| (p - centre).norm())
             .fold(0.0, f64::max)
             .max(1e-12);
-        let xs: Vec<Vec3> = points.iter().map(|p| (p - centre) / scale).collect();
+        let xs: Vec<Vec3> = all.iter().map(|p| (p - centre) / scale).collect();
+        // Functionals: (point, None = value, Some(d) = d-th derivative); row of each point's value.
+        let mut funcs: Vec<(usize, Option<usize>)> = Vec::with_capacity(m);
+        for k in 0..nh {
+            funcs.push((k, None));
+            for d in 0..3 {
+                funcs.push((k, Some(d)));
+            }
+        }
+        for k in 0..nvp {
+            funcs.push((nh + k, None));
+        }
         let mut a = DMatrix::<f64>::zeros(m, m);
-        for k in 0..n {
-            for j in 0..n {
+        for (r, &(k, dk)) in funcs.iter().enumerate() {
+            for (c, &(j, dj)) in funcs.iter().enumerate() {
                 let (phi, g, h) = kernel(&(xs[k] - xs[j]));
-                a[(4 * k, 4 * j)] = phi;
-                for d in 0..3 {
-                    a[(4 * k, 4 * j + 1 + d)] = -g[d];
-                    a[(4 * k + 1 + d, 4 * j)] = g[d];
-                    for e in 0..3 {
-                        a[(4 * k + 1 + d, 4 * j + 1 + e)] = -h[(d, e)];
-                    }
-                }
+                a[(r, c)] = match (dk, dj) {
+                    (None, None) => phi,
+                    (None, Some(e)) => -g[e],
+                    (Some(d), None) => g[d],
+                    (Some(d), Some(e)) => -h[(d, e)],
+                };
             }
         }
         let mut p = DMatrix::<f64>::zeros(m, 4);
         let mut y = DVector::<f64>::zeros(m);
-        for k in 0..n {
-            p[(4 * k, 0)] = 1.0;
-            for d in 0..3 {
-                p[(4 * k, 1 + d)] = xs[k][d];
-                p[(4 * k + 1 + d, 1 + d)] = 1.0;
-                // In scaled coordinates the gradient scales by `scale` (f is kept in world units).
-                y[4 * k + 1 + d] = normals[k][d] * scale;
+        for (r, &(k, dk)) in funcs.iter().enumerate() {
+            match dk {
+                None => {
+                    p[(r, 0)] = 1.0;
+                    for d in 0..3 {
+                        p[(r, 1 + d)] = xs[k][d];
+                    }
+                    if k >= nh {
+                        y[r] = values[k - nh];
+                    }
+                }
+                Some(d) => {
+                    p[(r, 1 + d)] = 1.0;
+                    // In scaled coordinates the gradient scales by `scale` (f stays in world units).
+                    y[r] = normals[k][d] * scale;
+                }
             }
         }
         // Householder QR of P: Q^T P = [R; 0]. Apply the reflectors to A (both sides) and y.
@@ -157,14 +190,21 @@ impl Hrbf {
             b: 0.0,
         };
         out.b = d[0] - out.a.dot(&centre);
-        for k in 0..n {
-            out.cx.push(points[k].x);
-            out.cy.push(points[k].y);
-            out.cz.push(points[k].z);
-            out.alpha.push(c[4 * k] / s3);
-            out.bx.push(c[4 * k + 1] / s2);
-            out.by.push(c[4 * k + 2] / s2);
-            out.bz.push(c[4 * k + 3] / s2);
+        for (r, &(k, dk)) in funcs.iter().enumerate() {
+            if dk.is_none() {
+                out.cx.push(all[k].x);
+                out.cy.push(all[k].y);
+                out.cz.push(all[k].z);
+                out.alpha.push(c[r] / s3);
+                let b = if k < nh {
+                    [c[r + 1], c[r + 2], c[r + 3]]
+                } else {
+                    [0.0; 3]
+                };
+                out.bx.push(b[0] / s2);
+                out.by.push(b[1] / s2);
+                out.bz.push(b[2] / s2);
+            }
         }
         Ok(out)
     }
@@ -335,6 +375,27 @@ mod tests {
         for (k, r) in row.iter().enumerate() {
             let p = start + Vec3::x() * (k as f64 * 0.05);
             assert_eq!(*r, h.eval(&p));
+        }
+    }
+
+    #[test]
+    fn mixed_fit_interpolates_values_and_hermite_data() {
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let pts: Vec<Vec3> = (0..30)
+            .map(|_| Vec3::new(rng.random(), rng.random(), 0.0))
+            .collect();
+        let nrm = vec![Vec3::z(); pts.len()];
+        let q: Vec<Vec3> = (0..20)
+            .map(|_| Vec3::new(rng.random(), rng.random(), rng.random_range(0.2..1.0)))
+            .collect();
+        let v: Vec<f64> = q.iter().map(|p| p.z * 0.7).collect();
+        let h = Hrbf::fit_mixed(&pts, &nrm, &q, &v).unwrap();
+        for p in &pts {
+            let (f, g) = h.eval(p);
+            assert!(f.abs() < 1e-8 && (g - Vec3::z()).norm() < 1e-6);
+        }
+        for (p, val) in q.iter().zip(&v) {
+            assert!((h.eval(p).0 - val).abs() < 1e-8);
         }
     }
 

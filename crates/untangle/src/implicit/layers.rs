@@ -21,6 +21,9 @@ pub struct FieldParams {
     pub samples: usize,
     /// Most boundary samples for the co-variant field `h_i`.
     pub boundary_samples: usize,
+    /// Interior vertices where `h_i` is pinned to minus the distance to the boundary (0: the
+    /// paper's boundary-only field).
+    pub interior_samples: usize,
     /// Grid cell; `None`: chosen so that the grid has about `max_nodes` nodes.
     pub cell: Option<f64>,
     /// Node budget of the grid when `cell` is `None`.
@@ -36,6 +39,7 @@ impl Default for FieldParams {
         FieldParams {
             samples: 600,
             boundary_samples: 300,
+            interior_samples: 150,
             cell: None,
             max_nodes: 400_000,
             margin: 0.15,
@@ -78,8 +82,9 @@ pub fn build_field(
     let h = if boundary.points.is_empty() {
         None
     } else {
+        let (vp, vv) = sampling::interior_values(mesh, &topo, params.interior_samples);
         Some(
-            Hrbf::fit(&boundary.points, &boundary.normals)
+            Hrbf::fit_mixed(&boundary.points, &boundary.normals, &vp, &vv)
                 .map_err(|e| Error::input(mesh.place(), format!("co-variant field: {e}")))?,
         )
     };
@@ -106,6 +111,7 @@ pub fn build_field(
         h: hg,
         num_samples: surf.points.len(),
         num_boundary_samples: boundary.points.len(),
+        h_margin: 0.5 * boundary.spacing,
         timing_ms: [ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4)],
     })
 }

@@ -5,8 +5,8 @@
 //! and its spatial gradient `∇f̂_i = Σ_j ∂O_i/∂f_j ∇f_j` (eq. 14).
 //!
 //! [`project_layer`] moves every vertex towards its *own original iso-value* `ε_v = f_i(p_v)`
-//! (so details that the smooth field does not capture are kept; in contact `ε_v` is clamped
-//! towards the safe side, see [`target_iso`]) by Newton steps along `∇f̂_i`,
+//! (so details that the smooth field does not capture are kept; in contact the target is the
+//! contact surface itself, see [`target_iso`]) by Newton steps along `∇f̂_i`,
 //! interleaved with tangential relaxation (Sec. 6.3): for every edge, the minimal rotation about
 //! its centre that makes it tangent to the field and the symmetric stretch that restores its
 //! original length give target displacements of its two vertices; each vertex moves by the
@@ -308,16 +308,15 @@ pub fn project_layer(
     }
 }
 
-/// The iso-value a vertex is driven to: its own `ε_v` away from contact (details kept), clamped
-/// towards the safe side in contact, so that a detail never pushes a layer through the one it
-/// touches: towards the inside (`min(ε, 0)`) when merged with an outer layer, towards the outside
-/// (`max(ε, 0)`) when merged with an inner one, `0` when merged with both.
+/// The iso-value a vertex is driven to: its own `ε_v` away from contact (details kept), and the
+/// contact surface itself (`0`) when merged with another layer, so that neither a detail nor the
+/// field's approximation error at the vertex can push a layer through the one it touches: the
+/// offsets of eq. 13 alone then set the separation.
 pub fn target_iso(eps: f64, run: (usize, usize), i: usize) -> f64 {
-    match (run.0 < i, run.1 > i) {
-        (false, false) => eps,
-        (false, true) => eps.min(0.0),
-        (true, false) => eps.max(0.0),
-        (true, true) => 0.0,
+    if run == (i, i) {
+        eps
+    } else {
+        0.0
     }
 }
 

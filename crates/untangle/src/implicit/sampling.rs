@@ -224,6 +224,53 @@ pub fn boundary_samples(mesh: &Mesh, topo: &Topology, flips: &[bool], spacing: f
     out
 }
 
+/// About `count` interior vertices with minus their distance to the open boundary along mesh
+/// edges (Dijkstra from the boundary vertices): value constraints that keep the whole garment
+/// inside its own influence region `h_i < 0`. Empty for a closed mesh.
+pub fn interior_values(mesh: &Mesh, topo: &Topology, count: usize) -> (Vec<Vec3>, Vec<f64>) {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    let nv = mesh.positions.len();
+    let mut dist = vec![f64::INFINITY; nv];
+    let mut heap = BinaryHeap::new();
+    for v in 0..nv {
+        if topo.boundary_vertex[v] {
+            dist[v] = 0.0;
+            heap.push(Reverse((0u64, v as u32)));
+        }
+    }
+    while let Some(Reverse((d, v))) = heap.pop() {
+        let d = f64::from_bits(d);
+        if d > dist[v as usize] {
+            continue;
+        }
+        for &u in topo.vertex_neighbors.row(v as usize) {
+            let nd = d + (mesh.positions[v as usize] - mesh.positions[u as usize]).norm();
+            if nd < dist[u as usize] {
+                dist[u as usize] = nd;
+                heap.push(Reverse((nd.to_bits(), u)));
+            }
+        }
+    }
+    let interior: Vec<usize> = (0..nv)
+        .filter(|&v| dist[v] > 0.0 && dist[v].is_finite())
+        .collect();
+    if interior.is_empty() || count == 0 {
+        return (Vec::new(), Vec::new());
+    }
+    let step = (interior.len() as f64 / count as f64).max(1.0);
+    let mut pts = Vec::new();
+    let mut vals = Vec::new();
+    let mut k = 0.0;
+    while (k as usize) < interior.len() {
+        let v = interior[k as usize];
+        pts.push(mesh.positions[v]);
+        vals.push(-dist[v]);
+        k += step;
+    }
+    (pts, vals)
+}
+
 /// Keeps every `k`-th sample so that at most `max` remain (deterministic thinning).
 pub fn thin(s: Samples, max: usize) -> Samples {
     if s.points.len() <= max || max == 0 {
