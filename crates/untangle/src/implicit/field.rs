@@ -29,6 +29,9 @@ pub struct GarmentField {
     /// Influence region: `h_i < h_margin` (a small positive margin keeps the garment's own
     /// boundary vertices, where `h_i = 0`, inside it).
     pub h_margin: f64,
+    /// Largest `|f_i|` at which the layer still counts as active: penetrations deeper than this
+    /// are taken for different parts of the body (infinite for the body).
+    pub depth_limit: f64,
     /// Time of each step, in milliseconds: sampling, fit of `f`, fit of `h`, grids.
     pub timing_ms: [f64; 4],
 }
@@ -40,8 +43,9 @@ impl LayerField for GarmentField {
     }
     #[inline]
     fn influences(&self, p: &Vec3) -> bool {
-        match &self.h {
-            None => self.f.sample(p).is_some(),
+        let near = matches!(self.f.sample(p), Some((v, _)) if v.abs() <= self.depth_limit);
+        near && match &self.h {
+            None => true,
             Some(h) => matches!(h.sample(p), Some((v, _)) if v < self.h_margin),
         }
     }

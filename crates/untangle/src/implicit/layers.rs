@@ -30,6 +30,9 @@ pub struct FieldParams {
     pub max_nodes: usize,
     /// Margin around the mesh's box covered by the grid, relative to the box diagonal.
     pub margin: f64,
+    /// Penetrations deeper than this fraction of the garment's box diagonal are not corrected
+    /// (the layer is inactive where `|f_i|` exceeds it); the body has no limit.
+    pub depth_limit: f64,
     /// Seed of the sampling.
     pub seed: u64,
 }
@@ -43,6 +46,7 @@ impl Default for FieldParams {
             cell: None,
             max_nodes: 400_000,
             margin: 0.15,
+            depth_limit: 0.1,
             seed: 1,
         }
     }
@@ -112,6 +116,11 @@ pub fn build_field(
         num_samples: surf.points.len(),
         num_boundary_samples: boundary.points.len(),
         h_margin: 0.5 * boundary.spacing,
+        depth_limit: if closed {
+            f64::INFINITY
+        } else {
+            params.depth_limit * diag
+        },
         timing_ms: [ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4)],
     })
 }
