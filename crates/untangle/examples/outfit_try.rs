@@ -8,16 +8,47 @@ fn main() {
     let refs: Vec<&untangle::mesh::Mesh> = garments.iter().collect();
     let pos0: Vec<_> = garments.iter().map(|m| m.positions.clone()).collect();
     println!("before: {:?}", verify(Some(&body), &refs, &pos0).unwrap());
-    let inputs: Vec<GarmentInput> = garments.iter().map(|m| GarmentInput { mesh: m, thickness: 0.005, weight: 1.0 }).collect();
+    let inputs: Vec<GarmentInput> = garments
+        .iter()
+        .map(|m| GarmentInput {
+            mesh: m,
+            thickness: 0.005,
+            weight: 1.0,
+        })
+        .collect();
     let t = std::time::Instant::now();
     let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
-    println!("time {:.0} ms body {:.0}", t.elapsed().as_secs_f64()*1e3, out.body_field_ms);
-    for r in &out.reports { println!("{r:?}"); }
-    println!("after: {:?}", verify(Some(&body), &refs, &out.positions).unwrap());
+    println!(
+        "time {:.0} ms body {:.0}",
+        t.elapsed().as_secs_f64() * 1e3,
+        out.body_field_ms
+    );
+    for r in &out.reports {
+        println!("{r:?}");
+    }
+    println!(
+        "after: {:?}",
+        verify(Some(&body), &refs, &out.positions).unwrap()
+    );
     for (m, p) in garments.iter().zip(&out.positions) {
-        let mm = untangle::mesh::Mesh { positions: p.clone(), ..m.clone() };
-        untangle::mesh::obj::write_obj(std::path::Path::new(&format!("/tmp/out_{}.obj", m.name)), &mm, None, "").unwrap();
-        untangle::mesh::obj::write_obj(std::path::Path::new(&format!("/tmp/in_{}.obj", m.name)), m, None, "").unwrap();
+        let mm = untangle::mesh::Mesh {
+            positions: p.clone(),
+            ..m.clone()
+        };
+        untangle::mesh::obj::write_obj(
+            std::path::Path::new(&format!("/tmp/out_{}.obj", m.name)),
+            &mm,
+            None,
+            "",
+        )
+        .unwrap();
+        untangle::mesh::obj::write_obj(
+            std::path::Path::new(&format!("/tmp/in_{}.obj", m.name)),
+            m,
+            None,
+            "",
+        )
+        .unwrap();
     }
     untangle::mesh::obj::write_obj(std::path::Path::new("/tmp/body.obj"), &body, None, "").unwrap();
 }

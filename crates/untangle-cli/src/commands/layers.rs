@@ -63,7 +63,10 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         .collect();
     for (k, f) in out_files.iter().enumerate() {
         if out_files[..k].contains(f) {
-            bail!("{}: two layers would be written to the same file", f.display());
+            bail!(
+                "{}: two layers would be written to the same file",
+                f.display()
+            );
         }
         check_output(f, &inputs)?;
     }
@@ -83,7 +86,12 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
             .chain(body.as_ref())
             .flat_map(|m| &m.positions),
     );
-    let thickness = per_layer(&args.thickness, n, "thickness", 0.002 * bbox.extent().norm())?;
+    let thickness = per_layer(
+        &args.thickness,
+        n,
+        "thickness",
+        0.002 * bbox.extent().norm(),
+    )?;
     let weight = per_layer(&args.weight, n, "weight", 1.0)?;
     let garments: Vec<GarmentInput> = meshes
         .iter()
@@ -129,7 +137,12 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
             positions: p.clone(),
             ..m.clone()
         };
-        obj::write_obj(f, &moved, None, "untangle layers (implicit untangling, Buffet et al. 2019)")?;
+        obj::write_obj(
+            f,
+            &moved,
+            None,
+            "untangle layers (implicit untangling, Buffet et al. 2019)",
+        )?;
     }
     if let Some(j) = &args.json {
         let layers: Vec<serde_json::Value> = result

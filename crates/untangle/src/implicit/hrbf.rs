@@ -367,7 +367,10 @@ mod tests {
         let pts: Vec<Vec3> = (0..40)
             .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()))
             .collect();
-        let nrm: Vec<Vec3> = pts.iter().map(|p| (p - Vec3::repeat(0.5)).normalize()).collect();
+        let nrm: Vec<Vec3> = pts
+            .iter()
+            .map(|p| (p - Vec3::repeat(0.5)).normalize())
+            .collect();
         let h = Hrbf::fit(&pts, &nrm).unwrap();
         let start = Vec3::new(-0.3, 0.2, 0.4);
         let mut row = vec![(0.0, Vec3::zeros()); 37];

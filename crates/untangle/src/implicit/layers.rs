@@ -98,7 +98,11 @@ pub fn build_field(
     let bbox = bbox0.inflated(params.margin * diag);
     let cell = match params.cell {
         Some(c) if c > 0.0 && c.is_finite() => c,
-        Some(c) => return Err(Error::Parameter(format!("grid cell must be positive, got {c}"))),
+        Some(c) => {
+            return Err(Error::Parameter(format!(
+                "grid cell must be positive, got {c}"
+            )))
+        }
         None => {
             let e = bbox.extent();
             (e.x * e.y * e.z / params.max_nodes.max(8) as f64).cbrt()
@@ -356,7 +360,12 @@ pub fn untangle_with_fields(
             &g.mesh.positions,
             &topo,
             &pp,
-            &|iteration| progress(Stage::Projection { layer: k, iteration }),
+            &|iteration| {
+                progress(Stage::Projection {
+                    layer: k,
+                    iteration,
+                })
+            },
         );
         let ms = t.elapsed().as_secs_f64() * 1e3;
         let max_displacement = pr
@@ -440,7 +449,9 @@ pub fn verify(
         ..Default::default()
     };
     for s in &a.segments {
-        let [oa, ob] = s.triangles.map(|t| am.object_of_triangle[t as usize] as usize);
+        let [oa, ob] = s
+            .triangles
+            .map(|t| am.object_of_triangle[t as usize] as usize);
         if oa == ob {
             v.self_intersections += 1;
         } else if oa >= ng || ob >= ng {

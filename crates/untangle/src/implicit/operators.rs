@@ -571,7 +571,11 @@ mod tests {
                     continue;
                 }
                 let ours = piece.contains(&field_vec(&x), n, 1e-12);
-                assert_eq!(ours, lit.iter().all(|&v| v > 0.0), "n={n} i={i} b={b} c={c}");
+                assert_eq!(
+                    ours,
+                    lit.iter().all(|&v| v > 0.0),
+                    "n={n} i={i} b={b} c={c}"
+                );
                 checked += 1;
             }
         }
@@ -662,7 +666,11 @@ mod tests {
                 let e = op.evaluate(&field_vec(&x));
                 let brute = brute_distance(&x, z, 4.0);
                 assert!(e.value.abs() <= brute + 1e-12, "exact is a lower bound");
-                assert!((e.value.abs() - brute).abs() < 1e-4, "{} vs {brute}", e.value);
+                assert!(
+                    (e.value.abs() - brute).abs() < 1e-4,
+                    "{} vs {brute}",
+                    e.value
+                );
             }
         }
     }
@@ -809,7 +817,11 @@ mod tests {
             let x: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
             let e = op.evaluate(&field_vec(&x));
             let num = numeric_distance(&op, &x, &mut rng);
-            assert!(e.value.abs() <= num + 1e-9, "exact {} > numeric {num}", e.value);
+            assert!(
+                e.value.abs() <= num + 1e-9,
+                "exact {} > numeric {num}",
+                e.value
+            );
             assert!(
                 num - e.value.abs() < 1e-3,
                 "case {case}: exact {} numeric {num}",

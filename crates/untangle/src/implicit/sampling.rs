@@ -300,7 +300,11 @@ mod tests {
         let flips = outward_flips(&m, &topo, &Vec3::zeros());
         let vn = vertex_normals(&m, &flips);
         let s = poisson_disk(&m, &vn, 300, 1);
-        assert!(s.points.len() > 200 && s.points.len() < 420, "{}", s.points.len());
+        assert!(
+            s.points.len() > 200 && s.points.len() < 420,
+            "{}",
+            s.points.len()
+        );
         let r = s.spacing;
         assert!((r - (4.0 * std::f64::consts::PI / (1.44 * 300.0)).sqrt()).abs() < 0.01);
         // Brute-force oracle: no pair closer than the radius, normals outward and unit.

@@ -138,7 +138,13 @@ mod tests {
     #[test]
     fn closest_point_matches_dense_sampling() {
         let mut rng = ChaCha8Rng::seed_from_u64(9);
-        let mut r = || Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        let mut r = || {
+            Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            )
+        };
         for _ in 0..200 {
             let (a, b, c, p) = (r(), r(), r(), r() * 2.0);
             let q = closest_point_triangle(&p, &a, &b, &c);

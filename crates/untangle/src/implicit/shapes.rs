@@ -15,7 +15,9 @@ pub fn sphere_mesh(name: &str, centre: &Vec3, radius: f64, n: usize) -> Mesh {
         let th = std::f64::consts::PI * r as f64 / n as f64;
         for s in 0..seg {
             let ph = 2.0 * std::f64::consts::PI * s as f64 / seg as f64;
-            pos.push(centre + radius * Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()));
+            pos.push(
+                centre + radius * Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()),
+            );
         }
     }
     pos.push(centre - Vec3::new(0.0, 0.0, radius));
@@ -37,7 +39,14 @@ pub fn sphere_mesh(name: &str, centre: &Vec3, radius: f64, n: usize) -> Mesh {
 
 /// A cylinder of `radius` around the z axis, `z ∈ [-h/2, h/2]`, with `seg` segments and
 /// `rings` rows of quads; open at both ends unless `closed` (then capped by fans).
-pub fn cylinder_mesh(name: &str, radius: f64, h: f64, seg: usize, rings: usize, closed: bool) -> Mesh {
+pub fn cylinder_mesh(
+    name: &str,
+    radius: f64,
+    h: f64,
+    seg: usize,
+    rings: usize,
+    closed: bool,
+) -> Mesh {
     let (seg, rings) = (seg.max(3), rings.max(1));
     let mut pos = Vec::new();
     for r in 0..=rings {

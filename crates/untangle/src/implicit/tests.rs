@@ -43,7 +43,10 @@ fn expected_radius(radii: &[f64], w: &[f64], t: &[f64], i: usize) -> f64 {
         }
     }
     assert!(!found.is_empty());
-    assert!(found.iter().all(|r| (r - found[0]).abs() < 1e-9), "{found:?}");
+    assert!(
+        found.iter().all(|r| (r - found[0]).abs() < 1e-9),
+        "{found:?}"
+    );
     found[0]
 }
 
@@ -124,7 +127,12 @@ fn body_of_infinite_weight_never_moves() {
     assert!((expected_radius(&[1.0, 0.8], &[f64::INFINITY, 1.0], &t, 1) - 1.015).abs() < 1e-12);
     sphere_scene(&[1.0, 0.8], &[f64::INFINITY, 1.0], &t, true);
     // Two garments both inside the body, in reversed order.
-    sphere_scene(&[1.0, 0.9, 0.85], &[f64::INFINITY, 1.0, 2.0], &[0.0, 0.02, 0.01], true);
+    sphere_scene(
+        &[1.0, 0.9, 0.85],
+        &[f64::INFINITY, 1.0, 2.0],
+        &[0.0, 0.02, 0.01],
+        true,
+    );
 }
 
 #[test]
@@ -179,7 +187,10 @@ fn cylinders_with_limited_influence() {
         if q.z.abs() < 0.45 {
             assert!((r - expect).abs() < 1e-5, "{r} at z {}", q.z);
         } else if q.z.abs() > 0.55 {
-            assert!((r - 0.5).abs() < 1e-12, "untouched outside the influence region");
+            assert!(
+                (r - 0.5).abs() < 1e-12,
+                "untouched outside the influence region"
+            );
         }
     }
 }
@@ -213,8 +224,8 @@ fn hrbf_spheres_meet_the_thickness_rule() {
     let out = untangle_layers(None, &garments, &p, &|_| {}).unwrap();
     let expect = (0.5 + 0.45 - 0.01) / 2.0;
     for (k, e) in [(0, expect), (1, expect + 0.01)] {
-        let mean: f64 = out.positions[k].iter().map(|p| p.norm()).sum::<f64>()
-            / out.positions[k].len() as f64;
+        let mean: f64 =
+            out.positions[k].iter().map(|p| p.norm()).sum::<f64>() / out.positions[k].len() as f64;
         assert!((mean - e).abs() < 2e-3, "layer {k}: {mean} vs {e}");
     }
     let md = super::separation::MeshDistance::new(&out.positions[0], &inner.triangles);
@@ -224,8 +235,49 @@ fn hrbf_spheres_meet_the_thickness_rule() {
         .collect();
     let s = super::separation::summarize(1, "0".into(), 0.01, d);
     eprintln!("{s:?} {:?}", out.reports);
-    eprintln!("timing {:?}", out.reports.iter().map(|r| r.field_ms).collect::<Vec<_>>());
+    eprintln!(
+        "timing {:?}",
+        out.reports.iter().map(|r| r.field_ms).collect::<Vec<_>>()
+    );
     assert!(s.relative_error < 0.02, "{s:?}");
     let v = verify(None, &[&inner, &outer], &out.positions).unwrap();
     assert!(v.is_clean(), "{v:?}");
+}
+
+#[test]
+fn arcsim_pants_and_tshirt_over_the_body() {
+    let shared = std::env::var_os("UNTANGLE_SHARED")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| {
+            std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared"))
+        });
+    if !shared.join("data/arcsim/meshes/tshirt.obj").exists() {
+        eprintln!(
+            "skipping: ARCSim meshes not found under {}",
+            shared.display()
+        );
+        return;
+    }
+    let (body, garments) =
+        crate::scenes::outfit::arcsim_outfit(&shared, &["pants3", "tshirt"], 2).unwrap();
+    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
+    let before: Vec<Vec<Vec3>> = garments.iter().map(|m| m.positions.clone()).collect();
+    let v0 = verify(Some(&body), &refs, &before).unwrap();
+    assert!(
+        v0.between_layers > 0 && v0.with_body > 0,
+        "the scene starts tangled"
+    );
+    let inputs: Vec<GarmentInput> = garments
+        .iter()
+        .map(|m| GarmentInput {
+            mesh: m,
+            thickness: 0.01,
+            weight: 1.0,
+        })
+        .collect();
+    let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
+    let v = verify(Some(&body), &refs, &out.positions).unwrap();
+    eprintln!("arcsim pants3+tshirt: before {v0:?}, after {v:?}");
+    assert!(v.between_layers * 20 <= v0.between_layers, "{v:?}");
+    assert!(v.with_body * 20 <= v0.with_body, "{v:?}");
 }

@@ -32,7 +32,16 @@ mod tests {
     fn offsets_follow_eq13() {
         let t = [0.0, 1.0, 2.0, 4.0, 8.0];
         let o = offsets(2, &t);
-        assert_eq!(&o[..5], &[-(1.0 + 1.0 + 0.0), -(1.0 + 0.5), 0.0, 1.0 + 2.0, 1.0 + 4.0 + 4.0]);
+        assert_eq!(
+            &o[..5],
+            &[
+                -(1.0 + 1.0 + 0.0),
+                -(1.0 + 0.5),
+                0.0,
+                1.0 + 2.0,
+                1.0 + 4.0 + 4.0
+            ]
+        );
         // Brute force: the distance between centre surfaces of layers me and j is the sum of the
         // half thicknesses of the ends plus everything strictly between.
         for me in 0..5 {
@@ -42,7 +51,9 @@ mod tests {
                 let expect: f64 = if a == b {
                     0.0
                 } else {
-                    (a..=b).map(|k| if k == a || k == b { t[k] / 2.0 } else { t[k] }).sum()
+                    (a..=b)
+                        .map(|k| if k == a || k == b { t[k] / 2.0 } else { t[k] })
+                        .sum()
                 };
                 assert_eq!(o[j].abs(), expect);
                 assert!(j <= me || o[j] >= 0.0);

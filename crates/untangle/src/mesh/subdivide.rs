@@ -86,6 +86,10 @@ mod tests {
         assert!((area(&m) - area(&s)).abs() < 1e-12);
         let g = crate::mesh::Garment::new(s).unwrap();
         assert_eq!(g.num_panels, 2);
-        assert_eq!(g.num_seam_vertices(), 3, "the seam edge got a midpoint with two uvs");
+        assert_eq!(
+            g.num_seam_vertices(),
+            3,
+            "the seam edge got a midpoint with two uvs"
+        );
     }
 }
