@@ -508,9 +508,7 @@ mod tests {
         let hi = i + c;
         for r in 0..lo {
             let mut v = vec![0.0; n];
-            for j in r..lo {
-                v[j] = w[j];
-            }
+            v[r..lo].copy_from_slice(&w[r..lo]);
             rows.push(v);
         }
         // B: b^2 lower triangular, negative, over columns lo..i.
@@ -524,9 +522,7 @@ mod tests {
         // C: c^2 upper triangular over columns i+1..=hi.
         for r in 0..c {
             let mut v = vec![0.0; n];
-            for j in i + 1 + r..=hi {
-                v[j] = w[j];
-            }
+            v[i + 1 + r..=hi].copy_from_slice(&w[i + 1 + r..=hi]);
             rows.push(v);
         }
         // D: lower triangular, negative, over columns hi+1..n.

@@ -183,6 +183,9 @@ impl Default for ProjectionParams {
     }
 }
 
+/// One vertex's Newton step: new position, unit field normal, run, residual.
+type Step = (Vec3, Vec3, (usize, usize), f64);
+
 /// Result of projecting one layer.
 #[derive(Clone, Debug)]
 pub struct LayerProjection {
@@ -235,7 +238,7 @@ pub fn project_layer(
         iterations = it + 1;
         let interleaved = it < params.relax_iterations;
         let sigma = if interleaved { params.damping } else { 1.0 };
-        let step: Vec<Option<(Vec3, Vec3, (usize, usize), f64)>> = (0..nv)
+        let step: Vec<Option<Step>> = (0..nv)
             .into_par_iter()
             .map(|v| {
                 if iso[v].is_nan() || (evaluated[v] && !zone[v]) {

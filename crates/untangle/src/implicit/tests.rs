@@ -278,6 +278,5 @@ fn arcsim_pants_and_tshirt_over_the_body() {
     let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
     let v = verify(Some(&body), &refs, &out.positions).unwrap();
     eprintln!("arcsim pants3+tshirt: before {v0:?}, after {v:?}");
-    assert!(v.between_layers * 20 <= v0.between_layers, "{v:?}");
-    assert!(v.with_body * 20 <= v0.with_body, "{v:?}");
+    assert!(v.is_clean(), "{v:?}");
 }
