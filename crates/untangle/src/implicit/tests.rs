@@ -280,3 +280,39 @@ fn arcsim_pants_and_tshirt_over_the_body() {
     eprintln!("arcsim pants3+tshirt: before {v0:?}, after {v:?}");
     assert!(v.is_clean(), "{v:?}");
 }
+
+#[test]
+fn same_result_for_one_and_two_threads() {
+    let outer = sphere_mesh("outer", &Vec3::new(0.01, 0.0, 0.0), 0.45, 16);
+    let inner = sphere_mesh("inner", &Vec3::zeros(), 0.5, 16);
+    let garments = [
+        GarmentInput {
+            mesh: &inner,
+            thickness: 0.01,
+            weight: 2.0,
+        },
+        GarmentInput {
+            mesh: &outer,
+            thickness: 0.02,
+            weight: 1.0,
+        },
+    ];
+    let p = Params {
+        fields: FieldParams {
+            samples: 150,
+            max_nodes: 30_000,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| untangle_layers(None, &garments, &p, &|_| {}).unwrap())
+    };
+    let (a, b) = (run(1), run(2));
+    assert_eq!(a.positions, b.positions);
+    assert!(a.reports.iter().all(|r| r.moved > 0));
+}
