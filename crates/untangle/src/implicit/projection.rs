@@ -183,8 +183,8 @@ impl Default for ProjectionParams {
     }
 }
 
-/// One vertex's Newton step: new position, unit field normal, run, residual.
-type Step = (Vec3, Vec3, (usize, usize), f64);
+/// One vertex's Newton step: new position, unit field normal, run, residual, step factor.
+type Step = (Vec3, Vec3, (usize, usize), f64, f64);
 
 /// Result of projecting one layer.
 #[derive(Clone, Debug)]
@@ -233,6 +233,10 @@ pub fn project_layer(
     let mut run = vec![(i, i); nv];
     let mut residual = vec![0.0; nv];
     let mut evaluated = vec![false; nv];
+    // Per-vertex step factor: halved when a step made the residual grow (the corrected field
+    // is only piecewise smooth: pieces and active sets switch), regrown when it shrinks.
+    let mut factor = vec![1.0f64; nv];
+    let mut last = vec![f64::INFINITY; nv];
     let mut iterations = 0;
     for it in 0..params.max_iterations.max(1) {
         iterations = it + 1;
@@ -246,6 +250,11 @@ pub fn project_layer(
                 }
                 let c = composer.evaluate(i, &pos[v])?;
                 let r = c.value - target_iso(iso[v], c.run, i);
+                let f = if r.abs() > last[v] {
+                    0.5 * factor[v]
+                } else {
+                    (2.0 * factor[v]).min(1.0)
+                };
                 let g2 = c.gradient.norm_squared();
                 let nrm = if g2 > 0.0 {
                     c.gradient / g2.sqrt()
@@ -253,19 +262,21 @@ pub fn project_layer(
                     Vec3::zeros()
                 };
                 if r.abs() <= params.tolerance || g2 < 1e-24 {
-                    return Some((pos[v], nrm, c.run, r.abs()));
+                    return Some((pos[v], nrm, c.run, r.abs(), f));
                 }
-                let mut d = c.gradient * (-sigma * r / g2);
+                let mut d = c.gradient * (-sigma * f.max(1.0 / 64.0) * r / g2);
                 let l = d.norm();
                 if l > params.max_step {
                     d *= params.max_step / l;
                 }
-                Some((pos[v] + d, nrm, c.run, r.abs()))
+                Some((pos[v] + d, nrm, c.run, r.abs(), f))
             })
             .collect();
         let mut any = false;
         for (v, s) in step.into_iter().enumerate() {
-            if let Some((p, nrm, rn, res)) = s {
+            if let Some((p, nrm, rn, res, f)) = s {
+                factor[v] = f;
+                last[v] = res;
                 evaluated[v] = true;
                 if p != pos[v] {
                     any = true;
