@@ -31,6 +31,8 @@ enum Command {
     Scene(commands::scene::Args),
     /// Run the main job on a built-in tangled example; results go to ./untangle-demo/.
     Demo(commands::demo::Args),
+    /// Dress a body in layered garments and untangle them implicitly (Buffet et al. 2019).
+    Layers(commands::layers::Args),
 }
 
 fn main() -> ExitCode {
@@ -59,6 +61,7 @@ fn main() -> ExitCode {
         Command::Check(a) => commands::check::run(a, &ctx),
         Command::Scene(a) => commands::scene::run(a, &ctx),
         Command::Demo(a) => commands::demo::run(a, &ctx),
+        Command::Layers(a) => commands::layers::run(a, &ctx),
     };
     match result {
         Ok(code) => ExitCode::from(code),

@@ -7,6 +7,7 @@
 pub mod exploded;
 pub mod folded;
 pub mod garment;
+pub mod outfit;
 pub mod rudimentary;
 pub mod sheet;
 
