@@ -60,29 +60,55 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     let order = bvh.order();
     let slot_tris: Vec<[u32; 3]> = order.iter().map(|&t| tris[t as usize]).collect();
     let slot_planes: Vec<CertifiedPlane> = order.iter().map(|&t| planes[t as usize]).collect();
-    let mut out = bvh.self_slot_pairs(|sa, sb, out: &mut Vec<Crossing>| {
-        let (ta, tb) = (slot_tris[sa as usize], slot_tris[sb as usize]);
-        if ta.iter().any(|v| tb.contains(v)) {
-            return; // shared vertex or edge: the fan pass decides
+    let certifier = super::culling::PatchCertifier::new(tris, topo, pos, &planes, bvh);
+    let certified = std::sync::Mutex::new(Vec::new());
+    let mut out = bvh.self_slot_pairs_culled(
+        |sa, sb, out: &mut Vec<Crossing>| {
+            let (ta, tb) = (slot_tris[sa as usize], slot_tris[sb as usize]);
+            if ta.iter().any(|v| tb.contains(v)) {
+                return; // shared vertex or edge: the fan pass decides
+            }
+            let (a, b) = (order[sa as usize], order[sb as usize]);
+            if has_obstacles
+                && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
+                && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
+            {
+                return;
+            }
+            let (pa, pb) = (&slot_planes[sa as usize], &slot_planes[sb as usize]);
+            ctx.pair_with(a, b, ta, tb, pa, pb, out);
+        },
+        |node, first, len| {
+            let ok = certifier.embedded(node, first, len);
+            if ok {
+                certified
+                    .lock()
+                    .expect("no panics while held")
+                    .push((first, len));
+            }
+            ok
+        },
+    );
+    // Triangles of a certified patch: a fan entirely inside one patch is embedded too.
+    let mut patch_of = vec![u32::MAX; tris.len()];
+    for (p, &(first, len)) in certified
+        .into_inner()
+        .expect("no panics while held")
+        .iter()
+        .enumerate()
+    {
+        for &t in &order[first as usize..(first + len) as usize] {
+            patch_of[t as usize] = p as u32;
         }
-        let (a, b) = (order[sa as usize], order[sb as usize]);
-        if has_obstacles
-            && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
-            && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
-        {
-            return;
-        }
-        let (pa, pb) = (&slot_planes[sa as usize], &slot_planes[sb as usize]);
-        ctx.pair_with(a, b, ta, tb, pa, pb, out);
-    });
-    let _ = topo;
-    out.extend(fan_crossings(&ctx, has_obstacles));
+    }
+    out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
     out.sort_unstable();
     out
 }
 
 /// Crossings between triangles that share exactly one vertex, fan by fan.
-fn fan_crossings(ctx: &Ctx, has_obstacles: bool) -> Vec<Crossing> {
+/// Fans whose triangles all lie in one certified patch (`patch_of`) are skipped.
+fn fan_crossings(ctx: &Ctx, has_obstacles: bool, patch_of: &[u32]) -> Vec<Crossing> {
     use rayon::prelude::*;
     let (mesh, pos) = (ctx.mesh, ctx.pos);
     let topo = &mesh.topology;
@@ -90,6 +116,13 @@ fn fan_crossings(ctx: &Ctx, has_obstacles: bool) -> Vec<Crossing> {
     let fan = |mut out: Vec<Crossing>, v: u32| {
         let fan = topo.vertex_triangles.row(v as usize);
         let boundary = topo.boundary_vertex[v as usize];
+        let p0 = fan
+            .first()
+            .map(|&t| patch_of[t as usize])
+            .unwrap_or(u32::MAX);
+        if p0 != u32::MAX && fan.iter().all(|&t| patch_of[t as usize] == p0) {
+            return out;
+        }
         if fan.len() < 3 || fan_is_embedded(v, fan, tris, pos, ctx.planes, boundary) {
             return out;
         }

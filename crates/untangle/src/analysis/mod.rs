@@ -7,6 +7,7 @@
 
 pub mod coloring;
 pub mod crossings;
+pub mod culling;
 pub mod input;
 pub mod paths;
 pub mod regions;

@@ -11,6 +11,8 @@
 use crate::geom::Aabb;
 
 const LEAF_SIZE: usize = 4;
+/// Smallest subtree offered to the culling predicate (smaller ones are cheaper to traverse).
+pub const CULL_MIN: u32 = 32;
 /// Subtrees with fewer primitives than this are traversed sequentially.
 const PAR_CUTOFF: u32 = 256;
 
@@ -25,6 +27,8 @@ struct Node {
     right: u32,
     /// Number of primitives below.
     size: u32,
+    /// First slot below (the subtree holds slots `first..first + size`).
+    first: u32,
 }
 
 impl Node {
@@ -89,6 +93,7 @@ impl Bvh {
                 count: 0,
                 right: 0,
                 size: 0,
+                first: 0,
             };
             count
         ];
@@ -159,12 +164,55 @@ impl Bvh {
         T: Send,
         F: Fn(u32, u32, &mut Vec<T>) + Sync,
     {
+        self.self_slot_pairs_culled(visit, |_, _, _| false)
+    }
+
+    /// Like [`Bvh::self_slot_pairs`], skipping the pairs *within* every subtree (of at least
+    /// [`CULL_MIN`] primitives) for which `cull(node, first_slot, len)` certifies that no two of
+    /// its primitives need visiting. Pairs between a culled subtree and the rest are still
+    /// visited. `node` indexes the values of [`Bvh::fold_up`].
+    pub fn self_slot_pairs_culled<T, F, C>(&self, visit: F, cull: C) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+        C: Fn(usize, u32, u32) -> bool + Sync,
+    {
         if self.nodes.is_empty() {
             return Vec::new();
         }
         let mut out = Vec::new();
-        self.self_rec(0, &visit, &mut out);
+        self.self_rec(0, &visit, &cull, &mut out);
         out
+    }
+
+    /// A value per node computed bottom-up: `leaf(slots)` for a leaf's primitive slots,
+    /// `merge(left, right)` for an inner node. Indexed like the `node` argument of the culling
+    /// predicate of [`Bvh::self_slot_pairs_culled`].
+    pub fn fold_up<V: Clone>(
+        &self,
+        leaf: impl Fn(std::ops::Range<u32>) -> V,
+        merge: impl Fn(&V, &V) -> V,
+    ) -> Vec<V> {
+        let mut vals: Vec<Option<V>> = vec![None; self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let n = self.nodes[i];
+            let v = if n.is_leaf() {
+                leaf(n.start..n.start + n.count)
+            } else {
+                let (l, r) = (
+                    vals[n.start as usize].as_ref(),
+                    vals[n.right as usize].as_ref(),
+                );
+                merge(
+                    l.expect("children after parents"),
+                    r.expect("children after parents"),
+                )
+            };
+            vals[i] = Some(v);
+        }
+        vals.into_iter()
+            .map(|v| v.expect("every node folded"))
+            .collect()
     }
 
     /// The primitive stored in each slot (slots are leaf order, close primitives are close).
@@ -172,13 +220,21 @@ impl Bvh {
         &self.order
     }
 
-    fn self_rec<T: Send, F: Fn(u32, u32, &mut Vec<T>) + Sync>(
+    fn self_rec<
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+        C: Fn(usize, u32, u32) -> bool + Sync,
+    >(
         &self,
         a: usize,
         visit: &F,
+        cull: &C,
         out: &mut Vec<T>,
     ) {
         let n = self.nodes[a];
+        if n.size >= CULL_MIN && cull(a, n.first, n.size) {
+            return;
+        }
         if n.is_leaf() {
             let s = n.start as usize;
             let e = s + n.count as usize;
@@ -198,12 +254,12 @@ impl Bvh {
                     rayon::join(
                         || {
                             let mut o = Vec::new();
-                            self.self_rec(l, visit, &mut o);
+                            self.self_rec(l, visit, cull, &mut o);
                             o
                         },
                         || {
                             let mut o = Vec::new();
-                            self.self_rec(r, visit, &mut o);
+                            self.self_rec(r, visit, cull, &mut o);
                             o
                         },
                     )
@@ -222,8 +278,8 @@ impl Bvh {
                 out.extend(o1);
             }
         } else {
-            self.self_rec(l, visit, out);
-            self.self_rec(r, visit, out);
+            self.self_rec(l, visit, cull, out);
+            self.self_rec(r, visit, cull, out);
             self.cross_rec_slots(self, l, r, visit, out);
         }
     }
@@ -393,6 +449,7 @@ fn build_range(nodes: &mut [Node], base: usize, codes: &[u64], boxes: &[Aabb], o
             count: size,
             right: 0,
             size,
+            first: offset,
         };
         return;
     }
@@ -416,6 +473,7 @@ fn build_range(nodes: &mut [Node], base: usize, codes: &[u64], boxes: &[Aabb], o
         count: 0,
         right: rb as u32,
         size,
+        first: offset,
     };
 }
 
@@ -478,6 +536,43 @@ mod tests {
                 let want: Vec<u32> = (0..moved.len() as u32).filter(|&i| moved[i as usize].overlaps(q)).collect();
                 prop_assert_eq!(hits, want);
             }
+        }
+    }
+
+    #[test]
+    fn culled_subtrees_lose_exactly_their_inner_pairs() {
+        let raw: Vec<([f64; 3], [f64; 3])> = (0..600)
+            .map(|i| {
+                (
+                    [(i % 30) as f64 * 0.5, (i / 30) as f64 * 0.5, 0.0],
+                    [0.4, 0.4, 0.4],
+                )
+            })
+            .collect();
+        let a = boxes(&raw);
+        let bvh = Bvh::build(&a);
+        let all: Vec<(u32, u32)> = bvh.self_slot_pairs(|i, j, o| o.push((i, j)));
+        // Cull every subtree lying in the first half of the slots.
+        let half = (a.len() / 2) as u32;
+        let culled: Vec<(u32, u32)> =
+            bvh.self_slot_pairs_culled(|i, j, o| o.push((i, j)), |_, f, n| f + n <= half);
+        // fold_up: sizes computed bottom-up equal the subtree sizes.
+        let sizes = bvh.fold_up(|r| r.len() as u32, |a, b| a + b);
+        assert_eq!(sizes[0], a.len() as u32);
+        let mut want: Vec<(u32, u32)> = all
+            .iter()
+            .copied()
+            .filter(|&(i, j)| !(i < half && j < half))
+            .collect();
+        let mut got = culled.clone();
+        want.sort();
+        got.sort();
+        // Pairs inside the culled half may only disappear if their whole subtree was culled;
+        // every pair with a slot outside it must remain.
+        assert!(want.iter().all(|p| got.contains(p)));
+        assert!(got.len() < all.len());
+        for p in &got {
+            assert!(all.contains(p));
         }
     }
 
