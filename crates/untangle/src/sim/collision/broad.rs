@@ -91,7 +91,9 @@ impl BroadPhase {
                 let b = swept(scene, v, [p], 0.0);
                 let mut local = Vec::new();
                 self.tri.query(&b, |t| {
-                    if !scene.triangles[t as usize].contains(&p) {
+                    if !scene.triangles[t as usize].contains(&p)
+                        && !scene.hinge[t as usize].contains(&p)
+                    {
                         local.push(Pair {
                             kind: PairKind::VertexTriangle,
                             a: p,
@@ -145,13 +147,16 @@ impl BroadPhase {
                     })
                     .collect::<Vec<_>>(),
             );
-            out.extend(self.edge.cross_pairs(&self.obs_edge, |i, j, o: &mut Vec<Pair>| {
-                o.push(Pair {
-                    kind: PairKind::EdgeObstacleEdge,
-                    a: i,
-                    b: j,
-                })
-            }));
+            out.extend(
+                self.edge
+                    .cross_pairs(&self.obs_edge, |i, j, o: &mut Vec<Pair>| {
+                        o.push(Pair {
+                            kind: PairKind::EdgeObstacleEdge,
+                            a: i,
+                            b: j,
+                        })
+                    }),
+            );
         }
         out
     }
