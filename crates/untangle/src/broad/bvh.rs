@@ -1,6 +1,9 @@
 //! Bounding volume hierarchy over axis-aligned boxes.
 //!
-//! Built top-down by median split on the longest centroid axis, stored in pre-order (children
+//! Built as a linear BVH: primitives are sorted along the Morton (Z-order) curve of their box
+//! centres and the sorted range is split where the highest Morton bit changes (Karras 2012), at
+//! the middle when all codes are equal. One integer sort plus a linear pass, in parallel near the
+//! root; the tree does not depend on the thread count. Nodes are stored in pre-order (children
 //! after parents), so a refit is one reverse sweep. Traversals run in parallel with `rayon::join`
 //! near the root and return results in a fixed order, so the output is identical for any thread
 //! count.
@@ -9,7 +12,7 @@ use crate::geom::Aabb;
 
 const LEAF_SIZE: usize = 4;
 /// Subtrees with fewer primitives than this are traversed sequentially.
-const PAR_CUTOFF: u32 = 2048;
+const PAR_CUTOFF: u32 = 256;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -45,19 +48,51 @@ impl Bvh {
     /// Builds the hierarchy over `aabbs` (primitive `i` has box `aabbs[i]`).
     pub fn build(aabbs: &[Aabb]) -> Bvh {
         let n = aabbs.len();
-        let mut order: Vec<u32> = (0..n as u32).collect();
-        let centers: Vec<[f64; 3]> = aabbs
+        if n == 0 {
+            return Bvh::default();
+        }
+        let bounds = aabbs.iter().fold(Aabb::EMPTY, |a, b| {
+            let c = b.center();
+            let mut a = a;
+            a.grow(&c);
+            a
+        });
+        let ext = bounds.extent();
+        let scale = |e: f64| {
+            if e > 0.0 {
+                ((1u64 << 21) - 1) as f64 / e
+            } else {
+                0.0
+            }
+        };
+        let (sx, sy, sz) = (scale(ext.x), scale(ext.y), scale(ext.z));
+        let mut keyed: Vec<(u64, u32)> = aabbs
             .iter()
-            .map(|b| {
-                let c = b.center();
-                [c.x, c.y, c.z]
+            .enumerate()
+            .map(|(i, b)| {
+                let c = b.center() - bounds.min;
+                let q = |v: f64, s: f64| ((v * s) as u64).min((1 << 21) - 1);
+                (morton3(q(c.x, sx), q(c.y, sy), q(c.z, sz)), i as u32)
             })
             .collect();
-        let mut nodes = Vec::with_capacity(2 * n / LEAF_SIZE + 2);
-        if n > 0 {
-            build_rec(&mut nodes, &mut order, 0, &centers, aabbs);
-        }
-        let slot_aabbs = order.iter().map(|&i| aabbs[i as usize]).collect();
+        keyed.sort_unstable();
+        let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
+        let order: Vec<u32> = keyed.iter().map(|k| k.1).collect();
+        let slot_aabbs: Vec<Aabb> = order.iter().map(|&i| aabbs[i as usize]).collect();
+        // Sizes are known up front (leaves hold up to LEAF_SIZE), so subtrees are built into
+        // disjoint parts of the node array, possibly in parallel, with a fixed layout.
+        let count = node_count(&codes);
+        let mut nodes = vec![
+            Node {
+                aabb: Aabb::EMPTY,
+                start: 0,
+                count: 0,
+                right: 0,
+                size: 0,
+            };
+            count
+        ];
+        build_range(&mut nodes, 0, &codes, &slot_aabbs, 0);
         Bvh {
             nodes,
             order,
@@ -291,52 +326,78 @@ impl Bvh {
     }
 }
 
-fn build_rec(
-    nodes: &mut Vec<Node>,
-    order: &mut [u32],
-    offset: u32,
-    centers: &[[f64; 3]],
-    aabbs: &[Aabb],
-) -> usize {
-    let idx = nodes.len();
-    let aabb = order
-        .iter()
-        .fold(Aabb::EMPTY, |a, &i| a.union(&aabbs[i as usize]));
-    let size = order.len() as u32;
-    nodes.push(Node {
-        aabb,
-        start: offset,
-        count: size,
-        right: 0,
+/// Interleaves the low 21 bits of x, y, z.
+fn morton3(x: u64, y: u64, z: u64) -> u64 {
+    fn spread(mut v: u64) -> u64 {
+        v &= 0x1f_ffff;
+        v = (v | v << 32) & 0x1f_0000_0000_ffff;
+        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        v = (v | v << 2) & 0x1249_2492_4924_9249;
+        v
+    }
+    spread(x) | spread(y) << 1 | spread(z) << 2
+}
+
+/// Where the sorted range `codes` is split: after the last code that shares the first code's
+/// highest differing bit with the last code; the middle when all codes are equal.
+fn split_point(codes: &[u64]) -> usize {
+    let (first, last) = (codes[0], codes[codes.len() - 1]);
+    if first == last {
+        return codes.len() / 2;
+    }
+    let bit = 63 - (first ^ last).leading_zeros();
+    // First index whose code has `bit` set (codes are sorted and agree above `bit`).
+    let p = codes.partition_point(|&c| (c >> bit) & 1 == 0);
+    p.clamp(1, codes.len() - 1)
+}
+
+/// Number of nodes of the tree over `codes`.
+fn node_count(codes: &[u64]) -> usize {
+    if codes.len() <= LEAF_SIZE {
+        return 1;
+    }
+    let m = split_point(codes);
+    1 + node_count(&codes[..m]) + node_count(&codes[m..])
+}
+
+/// Builds the subtree over slots `offset..offset + codes.len()` into `nodes` (its first element is
+/// the subtree's root, at global index `base`).
+fn build_range(nodes: &mut [Node], base: usize, codes: &[u64], boxes: &[Aabb], offset: u32) {
+    let size = codes.len() as u32;
+    if codes.len() <= LEAF_SIZE {
+        let aabb = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
+        nodes[0] = Node {
+            aabb,
+            start: offset,
+            count: size,
+            right: 0,
+            size,
+        };
+        return;
+    }
+    let m = split_point(codes);
+    let left_count = node_count(&codes[..m]);
+    let (root, rest) = nodes.split_at_mut(1);
+    let (left, right) = rest.split_at_mut(left_count);
+    let (lb, rb) = (base + 1, base + 1 + left_count);
+    if codes.len() as u32 >= PAR_CUTOFF {
+        rayon::join(
+            || build_range(left, lb, &codes[..m], &boxes[..m], offset),
+            || build_range(right, rb, &codes[m..], &boxes[m..], offset + m as u32),
+        );
+    } else {
+        build_range(left, lb, &codes[..m], &boxes[..m], offset);
+        build_range(right, rb, &codes[m..], &boxes[m..], offset + m as u32);
+    }
+    root[0] = Node {
+        aabb: left[0].aabb.union(&right[0].aabb),
+        start: lb as u32,
+        count: 0,
+        right: rb as u32,
         size,
-    });
-    if order.len() <= LEAF_SIZE {
-        return idx;
-    }
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for &i in order.iter() {
-        let c = centers[i as usize];
-        for k in 0..3 {
-            lo[k] = lo[k].min(c[k]);
-            hi[k] = hi[k].max(c[k]);
-        }
-    }
-    let axis = (0..3)
-        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
-        .unwrap_or(0);
-    let mid = order.len() / 2;
-    order.select_nth_unstable_by(mid, |&a, &b| {
-        centers[a as usize][axis]
-            .total_cmp(&centers[b as usize][axis])
-            .then(a.cmp(&b))
-    });
-    let (left, right) = order.split_at_mut(mid);
-    let l = build_rec(nodes, left, offset, centers, aabbs);
-    let r = build_rec(nodes, right, offset + mid as u32, centers, aabbs);
-    nodes[idx].start = l as u32;
-    nodes[idx].count = 0;
-    nodes[idx].right = r as u32;
-    idx
+    };
 }
 
 #[cfg(test)]
