@@ -26,9 +26,8 @@ impl Obstacle {
     /// An obstacle from a validated mesh.
     pub fn from_mesh(mesh: &Mesh, thickness: f64, friction: f64) -> Result<Obstacle> {
         mesh.validate()?;
-        if !(thickness >= 0.0 && thickness.is_finite())
-            || !(friction >= 0.0 && friction.is_finite())
-        {
+        let ok = |x: f64| x >= 0.0 && x.is_finite();
+        if !ok(thickness) || !ok(friction) {
             return Err(Error::Parameter(format!(
                 "obstacle '{}': thickness and friction must be finite and >= 0",
                 mesh.name

@@ -123,7 +123,7 @@ pub fn solve(
             }
         });
         let cq = dot(&c, &q);
-        if !(cq > 0.0) {
+        if cq.is_nan() || cq <= 0.0 {
             break;
         }
         let alpha = delta_new / cq;
