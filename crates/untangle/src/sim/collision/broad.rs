@@ -91,9 +91,7 @@ impl BroadPhase {
                 let b = swept(scene, v, [p], 0.0);
                 let mut local = Vec::new();
                 self.tri.query(&b, |t| {
-                    if !scene.triangles[t as usize].contains(&p)
-                        && !scene.hinge[t as usize].contains(&p)
-                    {
+                    if !scene.triangles[t as usize].contains(&p) {
                         local.push(Pair {
                             kind: PairKind::VertexTriangle,
                             a: p,

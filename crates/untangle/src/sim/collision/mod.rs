@@ -67,9 +67,9 @@ pub struct Scene<'a> {
     /// Cloth edges.
     pub edges: &'a [[u32; 2]],
     /// Per cloth triangle, the vertex opposite each of its edges in the neighbouring triangle
-    /// (`u32::MAX` on the boundary). Such a vertex and the triangle form a hinge: folding it flat
-    /// is bending, not a collision, and the intersection analysis ignores triangles that share an
-    /// edge, so these pairs are not candidates.
+    /// (`u32::MAX` on the boundary). Such hinge pairs ARE handled like any other: skipping them
+    /// lets the vertex pass through the triangle and drag its other triangles (which share only
+    /// a vertex with it) into an intersection.
     pub hinge: &'a [[u32; 3]],
     /// Obstacles.
     pub obstacles: &'a Obstacles,
