@@ -14,7 +14,7 @@
 use super::input::{AnalysisMesh, ObjectKind};
 use crate::broad::Bvh;
 use crate::geom::tri_tri::{
-    edge_crosses_triangle, edge_may_overlap_projected, straddling_edge_crosses_triangle,
+    edge_crosses_triangle, edge_may_overlap_projected, straddling_edge_crosses_triangle_fast,
     triangles_may_overlap_projected, CertifiedPlane,
 };
 use crate::geom::{Aabb, Vec3};
@@ -275,11 +275,19 @@ impl Ctx<'_> {
         out: &mut Vec<Crossing>,
     ) {
         let p = |v: u32| &self.pos[v as usize];
-        let da = ta.map(|v| plane_b.side(p(v)));
+        let da = [
+            plane_b.side(p(ta[0])),
+            plane_b.side(p(ta[1])),
+            plane_b.side(p(ta[2])),
+        ];
         if da[0] != 0 && da[0] == da[1] && da[1] == da[2] {
             return;
         }
-        let db = tb.map(|v| plane_a.side(p(v)));
+        let db = [
+            plane_a.side(p(tb[0])),
+            plane_a.side(p(tb[1])),
+            plane_a.side(p(tb[2])),
+        ];
         if db[0] != 0 && db[0] == db[1] && db[1] == db[2] {
             return;
         }
@@ -328,7 +336,7 @@ impl Ctx<'_> {
             let (p, q) = (&pos[i as usize], &pos[j as usize]);
             let ids = [i, j, tb[0], tb[1], tb[2]];
             let crosses = if sp != 0 && sq != 0 {
-                straddling_edge_crosses_triangle(p, q, pa, pb, pc, ids)
+                straddling_edge_crosses_triangle_fast(p, q, pa, pb, pc, ids)
             } else {
                 edge_may_overlap_projected(p, q, pa, pb, pc)
                     && edge_crosses_triangle(p, q, pa, pb, pc, ids)
