@@ -79,25 +79,11 @@ impl Bvh {
                 (morton3(q(c.x, sx), q(c.y, sy), q(c.z, sz)), i as u32)
             })
             .collect();
-        keyed.sort_unstable();
+        radix_sort(&mut keyed);
         let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).collect();
         let slot_aabbs: Vec<Aabb> = order.iter().map(|&i| aabbs[i as usize]).collect();
-        // Sizes are known up front (leaves hold up to LEAF_SIZE), so subtrees are built into
-        // disjoint parts of the node array, possibly in parallel, with a fixed layout.
-        let count = node_count(&codes);
-        let mut nodes = vec![
-            Node {
-                aabb: Aabb::EMPTY,
-                start: 0,
-                count: 0,
-                right: 0,
-                size: 0,
-                first: 0,
-            };
-            count
-        ];
-        build_range(&mut nodes, 0, &codes, &slot_aabbs, 0);
+        let nodes = build_subtree(&codes, &slot_aabbs, 0, 0);
         Bvh {
             nodes,
             order,
@@ -428,53 +414,105 @@ fn split_point(codes: &[u64]) -> usize {
     p.clamp(1, codes.len() - 1)
 }
 
-/// Number of nodes of the tree over `codes`.
-fn node_count(codes: &[u64]) -> usize {
-    if codes.len() <= LEAF_SIZE {
-        return 1;
+/// Builds the subtree over slots `offset..offset + codes.len()` in pre-order, node indices local
+/// to the returned vector (the root is element 0). The top `PAR_DEPTH` levels build their two
+/// halves in parallel and concatenate them, shifting child indices; the result does not depend on
+/// the thread count.
+fn build_subtree(codes: &[u64], boxes: &[Aabb], offset: u32, depth: u32) -> Vec<Node> {
+    const PAR_DEPTH: u32 = 3;
+    if depth < PAR_DEPTH && codes.len() as u32 >= 4 * PAR_CUTOFF {
+        let size = codes.len() as u32;
+        let m = split_point(codes);
+        let (mut left, right) = rayon::join(
+            || build_subtree(&codes[..m], &boxes[..m], offset, depth + 1),
+            || build_subtree(&codes[m..], &boxes[m..], offset + m as u32, depth + 1),
+        );
+        let shift = |nodes: &mut [Node], by: u32| {
+            for n in nodes.iter_mut() {
+                if !n.is_leaf() {
+                    n.start += by;
+                    n.right += by;
+                }
+            }
+        };
+        let (nl, nr) = (left.len() as u32, right.len() as u32);
+        let mut nodes = Vec::with_capacity((1 + nl + nr) as usize);
+        nodes.push(Node {
+            aabb: left[0].aabb.union(&right[0].aabb),
+            start: 1,
+            count: 0,
+            right: 1 + nl,
+            size,
+            first: offset,
+        });
+        shift(&mut left, 1);
+        nodes.extend(left);
+        let base = nodes.len();
+        nodes.extend(right);
+        shift(&mut nodes[base..], 1 + nl);
+        debug_assert_eq!(nodes.len() as u32, 1 + nl + nr);
+        return nodes;
     }
-    let m = split_point(codes);
-    1 + node_count(&codes[..m]) + node_count(&codes[m..])
+    let mut nodes = Vec::with_capacity(2 * codes.len() / LEAF_SIZE + 1);
+    build_sequential(&mut nodes, codes, boxes, offset);
+    nodes
 }
 
-/// Builds the subtree over slots `offset..offset + codes.len()` into `nodes` (its first element is
-/// the subtree's root, at global index `base`).
-fn build_range(nodes: &mut [Node], base: usize, codes: &[u64], boxes: &[Aabb], offset: u32) {
+/// Pre-order build appending to `nodes`; returns the index of the subtree root.
+fn build_sequential(nodes: &mut Vec<Node>, codes: &[u64], boxes: &[Aabb], offset: u32) -> usize {
+    let idx = nodes.len();
     let size = codes.len() as u32;
     if codes.len() <= LEAF_SIZE {
         let aabb = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
-        nodes[0] = Node {
+        nodes.push(Node {
             aabb,
             start: offset,
             count: size,
             right: 0,
             size,
             first: offset,
-        };
-        return;
+        });
+        return idx;
     }
-    let m = split_point(codes);
-    let left_count = node_count(&codes[..m]);
-    let (root, rest) = nodes.split_at_mut(1);
-    let (left, right) = rest.split_at_mut(left_count);
-    let (lb, rb) = (base + 1, base + 1 + left_count);
-    if codes.len() as u32 >= PAR_CUTOFF {
-        rayon::join(
-            || build_range(left, lb, &codes[..m], &boxes[..m], offset),
-            || build_range(right, rb, &codes[m..], &boxes[m..], offset + m as u32),
-        );
-    } else {
-        build_range(left, lb, &codes[..m], &boxes[..m], offset);
-        build_range(right, rb, &codes[m..], &boxes[m..], offset + m as u32);
-    }
-    root[0] = Node {
-        aabb: left[0].aabb.union(&right[0].aabb),
-        start: lb as u32,
+    nodes.push(Node {
+        aabb: Aabb::EMPTY,
+        start: 0,
         count: 0,
-        right: rb as u32,
+        right: 0,
         size,
         first: offset,
-    };
+    });
+    let m = split_point(codes);
+    let l = build_sequential(nodes, &codes[..m], &boxes[..m], offset);
+    let r = build_sequential(nodes, &codes[m..], &boxes[m..], offset + m as u32);
+    nodes[idx].aabb = nodes[l].aabb.union(&nodes[r].aabb);
+    nodes[idx].start = l as u32;
+    nodes[idx].right = r as u32;
+    idx
+}
+
+/// Sorts `(key, index)` pairs by key, then index (LSD radix sort on the 64-bit key; stable, and
+/// the input is in index order, so ties keep index order).
+fn radix_sort(v: &mut Vec<(u64, u32)>) {
+    let mut tmp = vec![(0u64, 0u32); v.len()];
+    let max = v.iter().map(|x| x.0).max().unwrap_or(0);
+    let passes = (64 - max.leading_zeros()).div_ceil(8);
+    for pass in 0..passes {
+        let shift = 8 * pass;
+        let mut count = [0usize; 257];
+        for x in v.iter() {
+            count[((x.0 >> shift) & 0xff) as usize + 1] += 1;
+        }
+        for k in 0..256 {
+            count[k + 1] += count[k];
+        }
+        for x in v.iter() {
+            let b = ((x.0 >> shift) & 0xff) as usize;
+            tmp[count[b]] = *x;
+            count[b] += 1;
+        }
+        std::mem::swap(v, &mut tmp);
+    }
 }
 
 #[cfg(test)]
@@ -536,6 +574,17 @@ mod tests {
                 let want: Vec<u32> = (0..moved.len() as u32).filter(|&i| moved[i as usize].overlaps(q)).collect();
                 prop_assert_eq!(hits, want);
             }
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn radix_sort_matches_std_sort(keys in proptest::collection::vec(proptest::num::u64::ANY, 0..500), small in proptest::bool::ANY) {
+            let mut v: Vec<(u64, u32)> = keys.iter().enumerate().map(|(i, &k)| (if small { k % 7 } else { k >> 1 }, i as u32)).collect();
+            let mut w = v.clone();
+            radix_sort(&mut v);
+            w.sort();
+            prop_assert_eq!(v, w);
         }
     }
 
