@@ -20,6 +20,7 @@ pub mod fsio;
 pub mod geom;
 pub mod implicit;
 pub mod mesh;
+pub mod radix;
 pub mod scenes;
 pub mod sim;
 

@@ -20,7 +20,7 @@ use crate::geom::tri_tri::{
 use crate::geom::{Aabb, Vec3};
 
 /// Edge `edge` passes through triangle `triangle`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Crossing {
     /// Edge index in the analysis mesh's topology.
     pub edge: u32,
@@ -102,7 +102,7 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
         }
     }
     out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
-    out.sort_unstable();
+    crate::radix::sort_by_key(&mut out, |c| ((c.edge as u64) << 32) | c.triangle as u64);
     out
 }
 

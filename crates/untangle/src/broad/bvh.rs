@@ -79,7 +79,7 @@ impl Bvh {
                 (morton3(q(c.x, sx), q(c.y, sy), q(c.z, sz)), i as u32)
             })
             .collect();
-        radix_sort(&mut keyed);
+        crate::radix::sort_by_key(&mut keyed, |k| k.0);
         let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).collect();
         let slot_aabbs: Vec<Aabb> = order.iter().map(|&i| aabbs[i as usize]).collect();
@@ -491,30 +491,6 @@ fn build_sequential(nodes: &mut Vec<Node>, codes: &[u64], boxes: &[Aabb], offset
     idx
 }
 
-/// Sorts `(key, index)` pairs by key, then index (LSD radix sort on the 64-bit key; stable, and
-/// the input is in index order, so ties keep index order).
-fn radix_sort(v: &mut Vec<(u64, u32)>) {
-    let mut tmp = vec![(0u64, 0u32); v.len()];
-    let max = v.iter().map(|x| x.0).max().unwrap_or(0);
-    let passes = (64 - max.leading_zeros()).div_ceil(8);
-    for pass in 0..passes {
-        let shift = 8 * pass;
-        let mut count = [0usize; 257];
-        for x in v.iter() {
-            count[((x.0 >> shift) & 0xff) as usize + 1] += 1;
-        }
-        for k in 0..256 {
-            count[k + 1] += count[k];
-        }
-        for x in v.iter() {
-            let b = ((x.0 >> shift) & 0xff) as usize;
-            tmp[count[b]] = *x;
-            count[b] += 1;
-        }
-        std::mem::swap(v, &mut tmp);
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -574,17 +550,6 @@ mod tests {
                 let want: Vec<u32> = (0..moved.len() as u32).filter(|&i| moved[i as usize].overlaps(q)).collect();
                 prop_assert_eq!(hits, want);
             }
-        }
-    }
-
-    proptest! {
-        #[test]
-        fn radix_sort_matches_std_sort(keys in proptest::collection::vec(proptest::num::u64::ANY, 0..500), small in proptest::bool::ANY) {
-            let mut v: Vec<(u64, u32)> = keys.iter().enumerate().map(|(i, &k)| (if small { k % 7 } else { k >> 1 }, i as u32)).collect();
-            let mut w = v.clone();
-            radix_sort(&mut v);
-            w.sort();
-            prop_assert_eq!(v, w);
         }
     }
 
