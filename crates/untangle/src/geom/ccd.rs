@@ -181,7 +181,8 @@ pub fn vertex_triangle_impact(
         };
         [x[0].x - q.x, x[0].y - q.y, x[0].z - q.z]
     };
-    solve(x0, x1, thickness, options, corner)
+    let distance2 = |x: &[Vec3; 4]| super::distance::point_triangle(&x[0], &x[1], &x[2], &x[3]).0;
+    solve(x0, x1, thickness, options, corner, distance2)
 }
 
 /// [`edge_edge_ccd`] with explicit options and a detailed answer.
@@ -196,7 +197,8 @@ pub fn edge_edge_impact(
         let (a, b) = (&x[u], &x[2 + v]);
         [a.x - b.x, a.y - b.y, a.z - b.z]
     };
-    solve(x0, x1, thickness, options, corner)
+    let distance2 = |x: &[Vec3; 4]| super::distance::segment_segment(&x[0], &x[1], &x[2], &x[3]).0;
+    solve(x0, x1, thickness, options, corner, distance2)
 }
 
 /// Conservative vertex–triangle CCD over a batch of queries (in parallel, results in input
@@ -244,6 +246,7 @@ fn give_up() -> Option<Impact> {
 }
 
 type Corners = [[f64; 3]; 8];
+const TRACE: bool = false;
 
 fn solve(
     x0: &[Vec3; 4],
@@ -251,6 +254,7 @@ fn solve(
     thickness: f64,
     options: &CcdOptions,
     corner: impl Fn(&[Vec3; 4], usize, usize) -> [f64; 3],
+    distance2: fn(&[Vec3; 4]) -> f64,
 ) -> Option<Impact> {
     let in_range = |x: &[Vec3; 4]| x.iter().all(|p| p.iter().all(|c| c.abs() <= MAX_COORD));
     // NaN compares false, so non-finite input is caught here too.
@@ -281,10 +285,15 @@ fn solve(
         delta2_up: delta * delta * (1.0 + f64::powi(2.0, -48)),
         tol: options.tolerance.max(0.0) * scale,
         inv_scale,
-        witness2: ((delta * (1.0 + options.thickness_tolerance.max(0.0))
-            + options.tolerance.max(0.0) * scale)
-            * inv_scale)
-            .powi(2),
+        witness: delta * (1.0 + options.thickness_tolerance.max(0.0))
+            + options.tolerance.max(0.0) * scale,
+        x0: *x0,
+        dx: [0, 1, 2, 3].map(|i| x1[i] - x0[i]),
+        distance2,
+        // With a thickness the first contact lies on a curved boundary, where splitting the
+        // barycentric parameters multiplies boxes while thin time slabs are already tight
+        // (see `separated`); with zero thickness contacts are isolated points to localise.
+        t_weight: if delta > 0.0 { 64.0 } else { 4.0 },
         max_boxes: options.max_boxes.max(1),
     };
     // Most queries are decided at the root (the swept boxes are apart): no queue needed.
@@ -321,32 +330,26 @@ struct Search {
     ball: bool,
     delta2_up: f64,
     tol: f64,
-    /// `1 / scale`, applied before squaring in the witness test.
+    /// `1 / scale` (keeps the products of the direction tests finite).
     inv_scale: f64,
-    /// `((thickness (1 + thickness_tolerance) + tol) / scale)^2`: a corner this close to the
-    /// origin is a near contact (witness).
-    witness2: f64,
+    /// `thickness (1 + thickness_tolerance) + tol`: primitives this close are a near contact.
+    witness: f64,
+    /// Positions at `t = 0` and their displacements to `t = 1` (for the witness distance).
+    x0: [Vec3; 4],
+    dx: [Vec3; 4],
+    /// Squared distance between the primitives at given positions.
+    distance2: fn(&[Vec3; 4]) -> f64,
+    /// Weight of the time spread against the parameter spreads when choosing a split.
+    t_weight: f64,
     max_boxes: u32,
 }
 
 impl Search {
-    /// True when the primitives are within `thickness + tol` of each other at the box's start
-    /// time: at one of the four corners of its `t_lo` face or at the centre of that face.
-    #[inline]
-    fn witness(&self, c: &Corners) -> bool {
-        // Scaled by a power of two near 1 / scale so that squares cannot overflow.
-        let f = self.inv_scale;
-        let mut centre = [0.0; 3];
-        for k in &c[..4] {
-            let k = [k[0] * f, k[1] * f, k[2] * f];
-            if k[0] * k[0] + k[1] * k[1] + k[2] * k[2] <= self.witness2 {
-                return true;
-            }
-            for i in 0..3 {
-                centre[i] += 0.25 * k[i];
-            }
-        }
-        centre[0] * centre[0] + centre[1] * centre[1] + centre[2] * centre[2] <= self.witness2
+    /// True when the primitives are within the witness distance of each other at time `t`
+    /// (computed in floating point: this decides acceptance, never exclusion).
+    fn witness(&self, t: f64) -> bool {
+        let x = [0, 1, 2, 3].map(|i| self.x0[i] + self.dx[i] * t);
+        (self.distance2)(&x).sqrt() <= self.witness
     }
 
     /// Best-first search: always refines the open box with the earliest start time (ties: the
@@ -382,6 +385,7 @@ impl Search {
             },
         );
         let mut boxes = 0u32;
+        let mut witnessed = -1.0;
         while let Some(Reverse(key)) = s.queue.pop() {
             let idx = (key & 0xffff_ffff) as u32;
             let cell = s.cells[idx as usize];
@@ -405,8 +409,23 @@ impl Search {
                 }
             }
             let width = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(hi[2] - lo[2]);
-            if width <= self.tol || self.witness(c) {
+            if TRACE {
+                eprintln!(
+                    "box {boxes} t=[{}, +{}] d={:?} lo={lo:?} hi={hi:?} q={}",
+                    cell.t_lo,
+                    cell.t_w,
+                    cell.depth,
+                    s.queue.len()
+                );
+            }
+            if width <= self.tol {
                 return impact(true);
+            }
+            if cell.t_lo != witnessed {
+                witnessed = cell.t_lo;
+                if self.witness(cell.t_lo) {
+                    return impact(true);
+                }
             }
             if boxes >= self.max_boxes {
                 return impact(false);
@@ -466,6 +485,11 @@ impl Search {
                         }
                     }
                 }
+                let spread = if dim == 0 {
+                    spread * self.t_weight
+                } else {
+                    spread
+                };
                 if spread > best_spread {
                     best_spread = spread;
                     best_dim = dim;
@@ -548,7 +572,8 @@ impl Search {
                 return None;
             }
         }
-        if self.separated(c, &e) {
+        let fmax = [0, 1, 2].map(|i| lo[i].abs().max(hi[i].abs()));
+        if self.separated(c, &fmax, &e) {
             return None;
         }
         Some((lo, hi))
@@ -562,39 +587,35 @@ impl Search {
     /// candidate: the exclusion is then certified by [`Search::beyond`] with rigorous bounds. For
     /// thin time slabs the hull is tight, so grazing approaches at the thickness are settled by
     /// splitting time alone instead of covering the nearly touching region box by box.
-    fn separated(&self, c: &Corners, e: &[f64; 3]) -> bool {
+    fn separated(&self, c: &Corners, fmax: &[f64; 3], e: &[f64; 3]) -> bool {
         let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
         // Cheap candidates first: the face normals of the parallelepiped spanned by the mean
-        // edge vectors of the image (tight for small, nearly affine boxes).
+        // edge vectors of the image (tight for small, nearly affine boxes). Edge vectors are
+        // scaled by 1 / scale so that the cross products stay finite.
+        let f = self.inv_scale;
         let mut j = [[0.0f64; 3]; 3];
         for (dim, mask) in [(0usize, 4usize), (1, 2), (2, 1)] {
             for k in 0..8 {
                 if k & mask == 0 {
                     for i in 0..3 {
-                        j[dim][i] += c[k | mask][i] - c[k][i];
+                        j[dim][i] += (c[k | mask][i] - c[k][i]) * f;
                     }
                 }
             }
         }
-        let unit = |a: [f64; 3]| {
-            let m = a[0].abs().max(a[1].abs()).max(a[2].abs());
-            if m > 0.0 {
-                [a[0] / m, a[1] / m, a[2] / m]
-            } else {
-                [0.0; 3]
-            }
-        };
-        let cross = |a: [f64; 3], b: [f64; 3]| {
+        let cross = |a: &[f64; 3], b: &[f64; 3]| {
             [
                 a[1] * b[2] - a[2] * b[1],
                 a[2] * b[0] - a[0] * b[2],
                 a[0] * b[1] - a[1] * b[0],
             ]
         };
-        let (jt, js, jr) = (unit(j[0]), unit(j[1]), unit(j[2]));
-        for n in [cross(js, jr), cross(jt, js), cross(jt, jr)] {
-            if n != [0.0; 3] && (self.beyond(c, &n, e) || self.beyond(c, &[-n[0], -n[1], -n[2]], e))
-            {
+        for n in [
+            cross(&j[1], &j[2]),
+            cross(&j[0], &j[1]),
+            cross(&j[0], &j[2]),
+        ] {
+            if self.beyond(c, &n, fmax, e, true) {
                 return true;
             }
         }
@@ -629,7 +650,12 @@ impl Search {
             }
             if vw > 0.0 && vw * vw > vv * d2 {
                 // The plane through the origin side of the hull at distance vw/|v| > thickness.
-                return self.beyond(c, &v, e);
+                let n = [
+                    v[0] * self.inv_scale,
+                    v[1] * self.inv_scale,
+                    v[2] * self.inv_scale,
+                ];
+                return self.beyond(c, &n, fmax, e, false);
             }
             // Not yet separated: v <- closest point to the origin on the segment [v, w].
             let dvw = [w[0] - v[0], w[1] - v[1], w[2] - v[2]];
@@ -654,21 +680,20 @@ impl Search {
     /// corner error bound, `|n . (F_k - F~_k)| <= sum |n_i| E_i`, and the rounded dot product is
     /// off by at most `3u sum |n_i| |F~_k,i|`; the threshold adds both, bounds `|n|_2` from
     /// above, and adds a relative margin of `2^-40` for its own rounding and `2^-1020` for
-    /// products in the subnormal range. Any `n` is valid, so `n` itself need not be exact.
-    fn beyond(&self, c: &Corners, n: &[f64; 3], e: &[f64; 3]) -> bool {
-        // Unit max-norm keeps every product finite (coordinates are below 1e300).
+    /// products in the subnormal range. Any `n` is valid, so `n` itself need not be exact. With
+    /// `both`, the opposite direction `-n` is tried as well.
+    fn beyond(&self, c: &Corners, n: &[f64; 3], fmax: &[f64; 3], e: &[f64; 3], both: bool) -> bool {
+        // Products must stay finite: |n_i| <= 2^64 and coordinates below 1e300 guarantee it.
         let m = n[0].abs().max(n[1].abs()).max(n[2].abs());
-        if !(m > 0.0 && m.is_finite()) {
+        if !(m > 0.0 && m <= f64::powi(2.0, 64)) {
             return false;
         }
-        let n = &[n[0] / m, n[1] / m, n[2] / m];
-        let mut fmax = [0.0f64; 3];
         let mut mn = f64::INFINITY;
+        let mut mx = f64::NEG_INFINITY;
         for k in c {
-            for i in 0..3 {
-                fmax[i] = fmax[i].max(k[i].abs());
-            }
-            mn = mn.min(n[0] * k[0] + n[1] * k[1] + n[2] * k[2]);
+            let d = n[0] * k[0] + n[1] * k[1] + n[2] * k[2];
+            mn = mn.min(d);
+            mx = mx.max(d);
         }
         let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         let mut thr = norm * self.delta_up;
@@ -676,7 +701,7 @@ impl Search {
             thr += n[i].abs() * (e[i] + 3.0 * UNIT_ROUNDOFF * fmax[i]);
         }
         let thr = thr * (1.0 + f64::powi(2.0, -40)) + f64::powi(2.0, -1020);
-        mn > thr
+        mn > thr || (both && mx < -thr)
     }
 }
 
