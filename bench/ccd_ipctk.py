@@ -1,16 +1,20 @@
 #!/usr/bin/env python3
 """CCD benchmark: untangle's inclusion-based CCD vs ipctk's Tight Inclusion CCD (Wang et al. 2021).
 
-Runs both on every query of shared/data/ccd-sample-queries (thickness / minimum distance 0) in the
-same run and prints, per scene and kind, false positives and false negatives of both, queries per
-second of both and the ratio.
+Runs both, in the same run, on
+  * every query of shared/data/ccd-sample-queries (thickness / minimum distance 0, exact truth), and
+  * the seeded synthetic thickness queries of `ccd_bench` (planted contacts within the thickness,
+    and primitives resting parallel at 1.002-1.1 times the thickness), passed to ipctk as
+    `min_distance`,
+and prints per group: false positives and false negatives of both, queries per second of both, and
+the ratio.
 
     python3 bench/ccd_ipctk.py [--min-seconds S] [--ipc-max-iterations N] [--shared PATH]
 
-ipctk comes from PyPI and is installed only here, in a virtual environment under
-target/ccd-venv (created on first use). ipctk is timed through its Python binding, so its numbers
-include the per-call cost of pybind11 (measured separately with a trivial ipctk call and reported as
-"ipctk call overhead"; the "ipctk core" column subtracts it). untangle is timed in Rust
+ipctk comes from PyPI and is installed only here, in a virtual environment under target/ccd-venv
+(created on first use). ipctk is timed through its Python binding, so its numbers include the
+per-call cost of pybind11 and numpy conversion; that cost is measured with a trivial ipctk call and
+subtracted in the "ipctk core" column (an estimate of the C++ time). untangle is timed in Rust
 (`cargo run --release -p untangle --example ccd_bench -- --json`), single-threaded.
 """
 import json
@@ -38,8 +42,8 @@ def ensure_venv():
     os.execv(str(py), [str(py)] + sys.argv)
 
 
-def read_queries(path):
-    """Queries of one CSV file: (list of 8 points as float triples, truth)."""
+def read_benchmark_csv(path):
+    """Queries of one benchmark CSV file: (8 points as float triples, thickness 0, truth)."""
     rows = []
     for line in path.read_text().splitlines():
         f = line.strip().split(",")
@@ -48,7 +52,23 @@ def read_queries(path):
         # int / int is correctly rounded in Python; the values are exactly representable.
         xyz = tuple(int(f[2 * k]) / int(f[2 * k + 1]) for k in range(3))
         rows.append((xyz, f[6].strip() == "1"))
-    return [([r[0] for r in rows[i:i + 8]], rows[i][1]) for i in range(0, len(rows) - 7, 8)]
+    return [([r[0] for r in rows[i:i + 8]], 0.0, rows[i][1]) for i in range(0, len(rows) - 7, 8)]
+
+
+def read_synthetic(path):
+    """Groups written by `ccd_bench --write-synthetic`: {(scene, kind): [(points, thickness, truth)]}."""
+    groups = {}
+    key = None
+    for line in path.read_text().splitlines():
+        if line.startswith("#"):
+            _, scene, kind, _ = line.split()
+            key = (scene, kind)
+            groups[key] = []
+            continue
+        v = line.split()
+        c = [float(x) for x in v[:24]]
+        groups[key].append(([tuple(c[3 * i:3 * i + 3]) for i in range(8)], float(v[24]), v[25] == "1"))
+    return groups
 
 
 def main():
@@ -62,22 +82,32 @@ def main():
     max_iterations = int(float(args[args.index("--ipc-max-iterations") + 1])) if "--ipc-max-iterations" in args else 10_000_000
     shared = Path(args[args.index("--shared") + 1]) if "--shared" in args else Path(
         os.environ.get("UNTANGLE_SHARED", REPO.parent / "shared"))
-    root = shared / "data" / "ccd-sample-queries"
-    if not root.is_dir():
-        print(f"skipping: no CCD queries at {root}")
-        return
 
-    ti = ipctk.tight_inclusion
+    # Ours first: it also writes the synthetic queries.
+    synthetic_file = REPO / "target" / "ccd-synthetic-queries.txt"
+    out = subprocess.run(
+        ["cargo", "run", "-q", "--release", "-p", "untangle", "--example", "ccd_bench", "--",
+         "--json", "--min-seconds", str(min_seconds), "--write-synthetic", str(synthetic_file)],
+        cwd=REPO, check=True, capture_output=True, text=True,
+        env=dict(os.environ, UNTANGLE_SHARED=str(shared)))
+    ours = {(g["scene"], g["kind"]): g for g in json.loads(out.stdout)["groups"]}
+
     groups = []
-    for scene in sorted(p for p in root.iterdir() if p.is_dir()):
-        for kind in ["vertex-face", "edge-edge"]:
-            d = scene / kind
-            if not d.is_dir():
-                continue
-            qs = []
-            for f in sorted(d.glob("*.csv")):
-                qs.extend(read_queries(f))
-            groups.append((scene.name, kind, qs))
+    root = shared / "data" / "ccd-sample-queries"
+    if root.is_dir():
+        for scene in sorted(p for p in root.iterdir() if p.is_dir()):
+            for kind in ["vertex-face", "edge-edge"]:
+                d = scene / kind
+                if not d.is_dir():
+                    continue
+                qs = []
+                for f in sorted(d.glob("*.csv")):
+                    qs.extend(read_benchmark_csv(f))
+                groups.append((scene.name, kind, qs))
+    else:
+        print(f"note: no CCD benchmark queries at {root}; synthetic groups only")
+    for (scene, kind), qs in read_synthetic(synthetic_file).items():
+        groups.append((scene, kind, qs))
 
     # Per-call overhead of the binding: a trivial ipctk function with 8 vector arguments.
     pts = [np.zeros(3) for _ in range(8)]
@@ -87,61 +117,56 @@ def main():
         ipctk.point_triangle_aabb_ccd(*pts[:4], *pts[4:], 0.0)
     overhead = (time.perf_counter() - t0) / n
 
+    ti = ipctk.tight_inclusion
     ipc = {}
     for scene, kind, qs in groups:
         fn = ti.point_triangle_ccd if kind == "vertex-face" else ti.edge_edge_ccd
-        arrs = [[np.array(p, dtype=np.float64) for p in pts] for pts, _ in qs]
+        calls = [([np.array(p, dtype=np.float64) for p in pts], h) for pts, h, _ in qs]
         # Timed passes; the first one also records the answers. Further passes only while the
         # time budget lasts (hard groups take minutes per pass with ipctk's default settings).
         budget = min_seconds / len(groups)
         passes = 0
         t0 = time.perf_counter()
-        hits = [fn(*a, max_iterations=max_iterations)[0] for a in arrs]
+        hits = [fn(*a, min_distance=h, max_iterations=max_iterations)[0] for a, h in calls]
         passes += 1
         while time.perf_counter() - t0 < budget:
-            for a in arrs:
-                fn(*a, max_iterations=max_iterations)
+            for a, h in calls:
+                fn(*a, min_distance=h, max_iterations=max_iterations)
             passes += 1
         secs = (time.perf_counter() - t0) / passes
-        fp = sum(1 for h, (_, t) in zip(hits, qs) if h and not t)
-        fneg = sum(1 for h, (_, t) in zip(hits, qs) if t and not h)
-        print(f"  ipctk {scene} {kind}: {len(qs)} queries in {secs:.3f} s per pass", file=sys.stderr, flush=True)
-        ipc[(scene, kind)] = dict(queries=len(qs), positives=sum(t for _, t in qs), fp=fp, fn=fneg, seconds=secs)
-
-    out = subprocess.run(
-        ["cargo", "run", "-q", "--release", "-p", "untangle", "--example", "ccd_bench", "--",
-         "--json", "--min-seconds", str(min_seconds)],
-        cwd=REPO, check=True, capture_output=True, text=True,
-        env=dict(os.environ, UNTANGLE_SHARED=str(shared)))
-    ours = {(g["scene"], g["kind"]): g for g in json.loads(out.stdout)["groups"]}
+        fp = sum(1 for hit, (_, _, t) in zip(hits, qs) if hit and not t)
+        fneg = sum(1 for hit, (_, _, t) in zip(hits, qs) if t and not hit)
+        print(f"  ipctk {scene} {kind}: {len(qs)} queries, {secs:.3f} s per pass", file=sys.stderr, flush=True)
+        ipc[(scene, kind)] = dict(queries=len(qs), positives=sum(t for _, _, t in qs), fp=fp, fn=fneg, seconds=secs)
 
     print(f"ipctk {getattr(ipctk, '__version__', '?')} tight_inclusion (tolerance 1e-6, max_iterations "
           f"{max_iterations:g}, breadth-first); ipctk call overhead {overhead * 1e6:.2f} us/call")
     hdr = (f"{'scene':<28} {'kind':<11} {'n':>5} {'pos':>4} | {'FP ours':>7} {'FN ours':>7} {'FP ipc':>6} "
-           f"{'FN ipc':>6} | {'ours q/s':>10} {'ipctk q/s':>10} {'core q/s':>10} | {'ratio':>6} {'core':>6}")
-    print(hdr)
-    print("-" * len(hdr))
-    tot = dict(n=0, fpo=0, fno=0, fpi=0, fni=0, so=0.0, si=0.0)
-    for scene, kind, qs in groups:
-        i, o = ipc[(scene, kind)], ours[(scene, kind)]
-        n = i["queries"]
-        core = max(i["seconds"] - n * overhead, 1e-12)
-        qo, qi, qc = n / o["seconds"], n / i["seconds"], n / core
-        print(f"{scene:<28} {kind:<11} {n:>5} {i['positives']:>4} | {o['false_positives']:>7} "
-              f"{o['false_negatives']:>7} {i['fp']:>6} {i['fn']:>6} | {qo:>10.0f} {qi:>10.0f} {qc:>10.0f} | "
-              f"{qo / qi:>6.1f} {qo / qc:>6.1f}")
-        tot["n"] += n
-        tot["fpo"] += o["false_positives"]
-        tot["fno"] += o["false_negatives"]
-        tot["fpi"] += i["fp"]
-        tot["fni"] += i["fn"]
-        tot["so"] += o["seconds"]
-        tot["si"] += i["seconds"]
-    core = tot["si"] - tot["n"] * overhead
-    qo, qi, qc = tot["n"] / tot["so"], tot["n"] / tot["si"], tot["n"] / core
-    print("-" * len(hdr))
-    print(f"{'total':<28} {'':<11} {tot['n']:>5} {'':>4} | {tot['fpo']:>7} {tot['fno']:>7} {tot['fpi']:>6} "
-          f"{tot['fni']:>6} | {qo:>10.0f} {qi:>10.0f} {qc:>10.0f} | {qo / qi:>6.1f} {qo / qc:>6.1f}")
+           f"{'FN ipc':>6} | {'ours q/s':>10} {'ipctk q/s':>10} {'core q/s':>10} | {'ratio':>7} {'core':>7}")
+
+    def line(name, kind, n, pos, fpo, fno, fpi, fni, so, si):
+        core = max(si - n * overhead, 1e-12)
+        qo, qi, qc = n / so, n / si, n / core
+        return (f"{name:<28} {kind:<11} {n:>5} {pos:>4} | {fpo:>7} {fno:>7} {fpi:>6} {fni:>6} | "
+                f"{qo:>10.0f} {qi:>10.0f} {qc:>10.0f} | {qo / qi:>7.1f} {qo / qc:>7.1f}")
+
+    for title, pick in [("Wang et al. 2021 benchmark sample, thickness 0", lambda s: not s.startswith("synthetic")),
+                        ("synthetic queries with a thickness (min_distance)", lambda s: s.startswith("synthetic"))]:
+        rows = [(s, k, qs) for s, k, qs in groups if pick(s)]
+        if not rows:
+            continue
+        print(f"\n{title}")
+        print(hdr)
+        print("-" * len(hdr))
+        tot = [0, 0, 0, 0, 0, 0, 0.0, 0.0]
+        for scene, kind, qs in rows:
+            i, o = ipc[(scene, kind)], ours[(scene, kind)]
+            vals = [i["queries"], i["positives"], o["false_positives"], o["false_negatives"], i["fp"], i["fn"],
+                    o["seconds"], i["seconds"]]
+            print(line(scene, kind, *vals))
+            tot = [a + b for a, b in zip(tot, vals)]
+        print("-" * len(hdr))
+        print(line("total", "", *tot))
 
 
 if __name__ == "__main__":

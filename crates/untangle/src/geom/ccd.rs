@@ -34,7 +34,8 @@
 //! 2. the bounding box misses the Euclidean ball of radius `thickness` (thickness > 0);
 //! 3. all corner values lie beyond the thickness along a direction `n`: the face normals of the
 //!    parallelepiped spanned by the box's mean edge vectors in image space (tight for small,
-//!    nearly affine boxes: grazing contacts), and for thickness > 0 the direction found by a few
+//!    nearly affine boxes: grazing contacts), and for thickness > 0 the closest-point direction
+//!    of the primitives at the latest witness time (below) and the direction found by a few
 //!    iterations of Gilbert's closest-point algorithm on the 8 corner values (Gilbert, Johnson,
 //!    Keerthi 1988), which makes a thin time slab as tight as the exact distance between the
 //!    primitives. Directions are only candidates; each exclusion is certified with rigorous
@@ -42,10 +43,12 @@
 //!
 //! The search is best-first: it always refines the open box that starts earliest in time (ties:
 //! the deepest box), splitting it in half in time when one time half can be discarded, and
-//! otherwise along the parameter whose corner values spread most. It stops at the first box that
-//! is *accepted*: its inclusion is narrower than the tolerance on every axis, or a *witness* (a
-//! corner or the centre of its face at its start time) lies within
-//! `thickness (1 + thickness_tolerance) + tolerance * scale` of the origin. Since every open box
+//! otherwise along the parameter whose corner values spread most (time spreads weighted up, most
+//! with a thickness: thin time slabs are tight, see test 3). It stops at the first box that is
+//! *accepted*: its inclusion is narrower than the tolerance on every axis, or at its start time
+//! the primitives are within `thickness (1 + thickness_tolerance) + tolerance * scale` of each
+//! other (a *witness*, computed with [`super::distance`]; it decides acceptance, never
+//! exclusion). Since every open box
 //! starts no earlier than the accepted one, and discarded boxes hold no contact, the start time of
 //! the accepted box is never later than the first contact. A box budget and depth limits bound
 //! the work; when they are hit, the start time of the earliest open box is returned, which is
@@ -95,7 +98,10 @@
 //! the primitives are within `thickness (1 + thickness_tolerance) + tol` at the returned time. In
 //! both cases the primitives are within `sqrt(3) (thickness (1 + thickness_tolerance) + tol)` (up
 //! to rounding) of each other at the returned time, so a false positive is a near miss at least
-//! that close. [`Impact::resolved`] is false when the answer came from the box budget or a depth
+//! that close. With a thickness, a tangential approach may therefore be reported a little before
+//! the distance reaches the thickness exactly (by design of `thickness_tolerance`, default
+//! `1e-3`: cloth resting at the thickness is settled quickly); set it to 0 for an answer resolved
+//! to `tolerance` only. [`Impact::resolved`] is false when the answer came from the box budget or a depth
 //! limit instead (still conservative, possibly early).
 
 use super::{Real, Vec3};
@@ -106,12 +112,14 @@ use std::collections::BinaryHeap;
 /// Options of the inclusion-based CCD search.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CcdOptions {
-    /// Co-domain tolerance relative to the size of the query (the largest magnitude of the
-    /// relative corner positions): a box whose inclusion is narrower than this on every axis is
-    /// accepted as a contact. Smaller values mean fewer false positives and more work.
+    /// Distance tolerance relative to the size of the query (`scale`, the largest magnitude of
+    /// the relative corner positions `p - a`, `ea_i - eb_j`, ...): the search stops at the
+    /// earliest open box once the primitives are within `thickness + tolerance * scale` at its
+    /// start time, or once its inclusion is narrower than `tolerance * scale` on every axis.
+    /// Smaller values mean fewer false positives and more work.
     pub tolerance: Real,
-    /// Maximum number of boxes that survive the exclusion test before the search stops and
-    /// conservatively reports the earliest box still open.
+    /// Maximum number of boxes refined before the search stops and conservatively reports the
+    /// start time of the earliest box still open.
     pub max_boxes: u32,
     /// Extra tolerance relative to the thickness: a point closer than
     /// `thickness (1 + thickness_tolerance) + tolerance * scale` is a near contact (witness).
@@ -143,7 +151,7 @@ pub struct Impact {
     /// other at `toi`, see the module docs); false when it came from the box budget, a depth
     /// limit or invalid input (conservative but possibly early).
     pub resolved: bool,
-    /// Number of boxes that survived the exclusion test (work measure).
+    /// Number of boxes the search refined (a machine-independent work measure).
     pub boxes: u32,
 }
 
@@ -181,8 +189,11 @@ pub fn vertex_triangle_impact(
         };
         [x[0].x - q.x, x[0].y - q.y, x[0].z - q.z]
     };
-    let distance2 = |x: &[Vec3; 4]| super::distance::point_triangle(&x[0], &x[1], &x[2], &x[3]).0;
-    solve(x0, x1, thickness, options, corner, distance2)
+    let closest = |x: &[Vec3; 4]| {
+        let (_, w) = super::distance::point_triangle(&x[0], &x[1], &x[2], &x[3]);
+        x[0] - (x[1] * w[0] + x[2] * w[1] + x[3] * w[2])
+    };
+    solve(x0, x1, thickness, options, corner, closest)
 }
 
 /// [`edge_edge_ccd`] with explicit options and a detailed answer.
@@ -197,8 +208,11 @@ pub fn edge_edge_impact(
         let (a, b) = (&x[u], &x[2 + v]);
         [a.x - b.x, a.y - b.y, a.z - b.z]
     };
-    let distance2 = |x: &[Vec3; 4]| super::distance::segment_segment(&x[0], &x[1], &x[2], &x[3]).0;
-    solve(x0, x1, thickness, options, corner, distance2)
+    let closest = |x: &[Vec3; 4]| {
+        let (_, s, t) = super::distance::segment_segment(&x[0], &x[1], &x[2], &x[3]);
+        (x[0] + (x[1] - x[0]) * s) - (x[2] + (x[3] - x[2]) * t)
+    };
+    solve(x0, x1, thickness, options, corner, closest)
 }
 
 /// Conservative vertex–triangle CCD over a batch of queries (in parallel, results in input
@@ -246,7 +260,6 @@ fn give_up() -> Option<Impact> {
 }
 
 type Corners = [[f64; 3]; 8];
-const TRACE: bool = false;
 
 fn solve(
     x0: &[Vec3; 4],
@@ -254,7 +267,7 @@ fn solve(
     thickness: f64,
     options: &CcdOptions,
     corner: impl Fn(&[Vec3; 4], usize, usize) -> [f64; 3],
-    distance2: fn(&[Vec3; 4]) -> f64,
+    closest: fn(&[Vec3; 4]) -> Vec3,
 ) -> Option<Impact> {
     let in_range = |x: &[Vec3; 4]| x.iter().all(|p| p.iter().all(|c| c.abs() <= MAX_COORD));
     // NaN compares false, so non-finite input is caught here too.
@@ -289,7 +302,7 @@ fn solve(
             + options.tolerance.max(0.0) * scale,
         x0: *x0,
         dx: [0, 1, 2, 3].map(|i| x1[i] - x0[i]),
-        distance2,
+        closest,
         // With a thickness the first contact lies on a curved boundary, where splitting the
         // barycentric parameters multiplies boxes while thin time slabs are already tight
         // (see `separated`); with zero thickness contacts are isolated points to localise.
@@ -297,9 +310,20 @@ fn solve(
         max_boxes: options.max_boxes.max(1),
     };
     // Most queries are decided at the root (the swept boxes are apart): no queue needed.
-    search.include(&c, 1.0)?;
-    SCRATCH.with(|s| search.run(&c, &mut s.borrow_mut()))
+    search.include(&c, 1.0, &[0.0; 3])?;
+    SCRATCH.with(|s| {
+        let mut s = s.borrow_mut();
+        let answer = search.run(&c, &mut s);
+        if s.cells.capacity() > SCRATCH_KEEP {
+            // A rare huge search: do not keep its memory for the life of the thread.
+            *s = Scratch::default();
+        }
+        answer
+    })
 }
+
+/// Queue capacity (in boxes) kept between queries.
+const SCRATCH_KEEP: usize = 4096;
 
 /// One box of the search: corner values, time interval and split depth per parameter.
 #[derive(Clone, Copy)]
@@ -337,8 +361,9 @@ struct Search {
     /// Positions at `t = 0` and their displacements to `t = 1` (for the witness distance).
     x0: [Vec3; 4],
     dx: [Vec3; 4],
-    /// Squared distance between the primitives at given positions.
-    distance2: fn(&[Vec3; 4]) -> f64,
+    /// Vector between the closest points of the primitives at given positions (the value of
+    /// `F` at the closest parameters).
+    closest: fn(&[Vec3; 4]) -> Vec3,
     /// Weight of the time spread against the parameter spreads when choosing a split.
     t_weight: f64,
     max_boxes: u32,
@@ -347,9 +372,13 @@ struct Search {
 impl Search {
     /// True when the primitives are within the witness distance of each other at time `t`
     /// (computed in floating point: this decides acceptance, never exclusion).
-    fn witness(&self, t: f64) -> bool {
+    /// Also returns the closest-point direction (scaled by `1 / scale`), a good candidate
+    /// separating direction for boxes near time `t`.
+    fn witness(&self, t: f64) -> (bool, [f64; 3]) {
         let x = [0, 1, 2, 3].map(|i| self.x0[i] + self.dx[i] * t);
-        (self.distance2)(&x).sqrt() <= self.witness
+        let f = (self.closest)(&x);
+        let n = f * self.inv_scale;
+        (f.norm() <= self.witness, [n.x, n.y, n.z])
     }
 
     /// Best-first search: always refines the open box with the earliest start time (ties: the
@@ -386,6 +415,7 @@ impl Search {
         );
         let mut boxes = 0u32;
         let mut witnessed = -1.0;
+        let mut hint = [0.0; 3];
         while let Some(Reverse(key)) = s.queue.pop() {
             let idx = (key & 0xffff_ffff) as u32;
             let cell = s.cells[idx as usize];
@@ -409,23 +439,16 @@ impl Search {
                 }
             }
             let width = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(hi[2] - lo[2]);
-            if TRACE {
-                eprintln!(
-                    "box {boxes} t=[{}, +{}] d={:?} lo={lo:?} hi={hi:?} q={}",
-                    cell.t_lo,
-                    cell.t_w,
-                    cell.depth,
-                    s.queue.len()
-                );
-            }
             if width <= self.tol {
                 return impact(true);
             }
             if cell.t_lo != witnessed {
                 witnessed = cell.t_lo;
-                if self.witness(cell.t_lo) {
+                let (near, dir) = self.witness(cell.t_lo);
+                if near {
                     return impact(true);
                 }
+                hint = dir;
             }
             if boxes >= self.max_boxes {
                 return impact(false);
@@ -437,8 +460,8 @@ impl Search {
             let mut tsplit = None;
             if cell.depth[0] < MAX_DEPTH_T {
                 let (lower, upper) = split(c, 4);
-                let lower_in = self.include(&lower, levels).is_some();
-                let upper_in = self.include(&upper, levels).is_some();
+                let lower_in = self.include(&lower, levels, &hint).is_some();
+                let upper_in = self.include(&upper, levels, &hint).is_some();
                 if !(lower_in && upper_in) {
                     let mut d = cell.depth;
                     d[0] += 1;
@@ -524,7 +547,7 @@ impl Search {
             } else {
                 let (lower, upper) = split(c, [4usize, 2, 1][best_dim]);
                 for child in [lower, upper] {
-                    if self.include(&child, levels).is_some() {
+                    if self.include(&child, levels, &hint).is_some() {
                         push(
                             s,
                             Cell {
@@ -544,7 +567,7 @@ impl Search {
     /// Inclusion bounds `(lo, hi)` of a box at total split depth `levels - 1`, or `None` when the
     /// box provably holds no contact (see the module docs for the error bound).
     #[inline]
-    fn include(&self, c: &Corners, levels: f64) -> Option<([f64; 3], [f64; 3])> {
+    fn include(&self, c: &Corners, levels: f64, hint: &[f64; 3]) -> Option<([f64; 3], [f64; 3])> {
         let mut lo = c[0];
         let mut hi = c[0];
         for k in &c[1..] {
@@ -572,8 +595,17 @@ impl Search {
                 return None;
             }
         }
+        if self.ball {
+            // A corner within the thickness: the box cannot be excluded, skip the tests below.
+            let d2 = self.delta_up * self.delta_up;
+            if c.iter()
+                .any(|k| k[0] * k[0] + k[1] * k[1] + k[2] * k[2] <= d2)
+            {
+                return Some((lo, hi));
+            }
+        }
         let fmax = [0, 1, 2].map(|i| lo[i].abs().max(hi[i].abs()));
-        if self.separated(c, &fmax, &e) {
+        if self.separated(c, &fmax, &e, hint) {
             return None;
         }
         Some((lo, hi))
@@ -587,7 +619,7 @@ impl Search {
     /// candidate: the exclusion is then certified by [`Search::beyond`] with rigorous bounds. For
     /// thin time slabs the hull is tight, so grazing approaches at the thickness are settled by
     /// splitting time alone instead of covering the nearly touching region box by box.
-    fn separated(&self, c: &Corners, fmax: &[f64; 3], e: &[f64; 3]) -> bool {
+    fn separated(&self, c: &Corners, fmax: &[f64; 3], e: &[f64; 3], hint: &[f64; 3]) -> bool {
         let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
         // Cheap candidates first: the face normals of the parallelepiped spanned by the mean
         // edge vectors of the image (tight for small, nearly affine boxes). Edge vectors are
@@ -624,6 +656,11 @@ impl Search {
         if self.delta_up == 0.0 {
             return false;
         }
+        // The closest-point direction at the latest witness time is often right for nearby
+        // boxes; otherwise search one.
+        if self.beyond(c, hint, fmax, e, false) {
+            return true;
+        }
         let mut v = c[0];
         let mut vv = dot(&v, &v);
         for k in &c[1..] {
@@ -634,7 +671,7 @@ impl Search {
             }
         }
         let d2 = self.delta_up * self.delta_up;
-        for _ in 0..24 {
+        for _ in 0..6 {
             if vv <= d2 {
                 return false; // a point of the hull is within the thickness
             }

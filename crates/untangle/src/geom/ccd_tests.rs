@@ -210,6 +210,31 @@ fn invalid_input_is_conservative() {
 }
 
 #[test]
+fn budget_exhaustion_is_conservative() {
+    // Parallel edges meeting all along their overlap at t = 0.5: with a budget of a few boxes
+    // the search must stop early, unresolved, with an answer no later than 0.5.
+    let a = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0)];
+    let x0 = [a[0], a[1], v(0.5, 1.0, 0.0), v(1.5, 1.0, 0.0)];
+    let x1 = [a[0], a[1], v(0.5, -1.0, 0.0), v(1.5, -1.0, 0.0)];
+    let full = edge_edge_impact(&x0, &x1, 0.0, &CcdOptions::default()).unwrap();
+    assert!(
+        full.resolved && full.toi <= 0.5 && full.toi > 0.49,
+        "{full:?}"
+    );
+    for max_boxes in 1..full.boxes {
+        let o = CcdOptions {
+            max_boxes,
+            ..CcdOptions::default()
+        };
+        let cut = edge_edge_impact(&x0, &x1, 0.0, &o).unwrap();
+        assert!(
+            !cut.resolved && cut.toi <= full.toi && cut.boxes == max_boxes,
+            "{cut:?}"
+        );
+    }
+}
+
+#[test]
 fn batch_matches_single() {
     let t = tri();
     let q: Vec<([Vec3; 4], [Vec3; 4])> = (0..600)
