@@ -2,4 +2,6 @@
 
 pub mod check;
 pub mod demo;
+pub mod layers;
 pub mod scene;
+pub mod simulate;
