@@ -128,13 +128,18 @@ pub struct CcdOptions {
     pub thickness_tolerance: Real,
 }
 
+impl CcdOptions {
+    /// The defaults, usable in `const` items: `CcdOptions { max_boxes: 2000, ..CcdOptions::DEFAULT }`.
+    pub const DEFAULT: CcdOptions = CcdOptions {
+        tolerance: 1e-6,
+        max_boxes: 100_000,
+        thickness_tolerance: 1e-3,
+    };
+}
+
 impl Default for CcdOptions {
     fn default() -> Self {
-        CcdOptions {
-            tolerance: 1e-6,
-            max_boxes: 100_000,
-            thickness_tolerance: 1e-3,
-        }
+        CcdOptions::DEFAULT
     }
 }
 
