@@ -30,6 +30,7 @@ pub struct Collision {
 const CCD_OPTIONS: CcdOptions = CcdOptions {
     tolerance: 1e-6,
     max_boxes: 2000,
+    ..CcdOptions::DEFAULT
 };
 
 /// Runs CCD on one pair with thickness `eps`: first conservative advancement with the Lipschitz
