@@ -534,3 +534,32 @@ fn overlapping_spiral_strip_is_not_culled() {
         assert_eq!(sorted_pairs(&a), brute, "resolution {nt}x{nr}");
     }
 }
+
+/// The intersection curve of the closed scene lies on sheet A (the plane z = 0.0123 x), is closed
+/// and continuous (consecutive points no farther apart than a triangle's diameter).
+#[test]
+fn intersection_curves_lie_on_both_sheets_and_are_continuous() {
+    let s = scenes::closed(20);
+    let (am, pos, a) = analyse_checked(&s.meshes);
+    let curves = untangle::analysis::curves::tanglement_curves(&am, &pos, &a);
+    assert_eq!(curves.len(), 1);
+    let c = &curves[0];
+    assert_eq!(
+        c.len(),
+        a.paths[0].pieces.len() + 2,
+        "one point per piece, start repeated"
+    );
+    assert_eq!(c.first(), c.last());
+    let cell = 1.0 / 20.0 * 2f64.sqrt() * 1.05;
+    for w in c.windows(2) {
+        assert!(
+            (w[1] - w[0]).norm() <= cell,
+            "continuous: {:?} -> {:?}",
+            w[0],
+            w[1]
+        );
+    }
+    for p in c {
+        assert!((p.z - 0.0123 * p.x).abs() < 1e-9, "on sheet A: {p:?}");
+    }
+}
