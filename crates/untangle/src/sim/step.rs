@@ -17,7 +17,7 @@ use super::collision::{Pair, PairKind};
 use super::contact::{self, ContactFinder};
 use super::forces::stretch::{stretch_terms, StretchTerms, BLOCKS};
 use super::obstacle::{Obstacle, Obstacles};
-use super::pcg::{self, Filter, PcgResult, PcgSettings};
+use super::pcg::{self, Aggregation, CoarseLevel, Filter, PcgResult, PcgSettings};
 use super::policy::Contact;
 use super::policy::ContactPolicy;
 use super::report::{Energy, StepReport, StepTiming};
@@ -29,6 +29,12 @@ use crate::mesh::{Garment, Topology};
 
 /// Rounds of releasing pulling obstacle contacts and solving again.
 const MAX_RELEASE_ROUNDS: usize = 3;
+/// Meshes from this many vertices on get the coarse-grid CG preconditioner.
+const COARSE_MIN_VERTICES: usize = 200;
+/// Target number of coarse aggregates (the coarse matrix is dense, `3 x` this many unknowns).
+const COARSE_AGGREGATES: usize = 64;
+/// Smallest aggregate.
+const COARSE_MIN_SIZE: usize = 16;
 /// Largest friction damping per step as a multiple of the vertex mass (sticking).
 const FRICTION_CAP: f64 = 100.0;
 
@@ -164,6 +170,8 @@ pub struct Simulator {
     resting: Vec<Pair>,
     /// Normal impulse of each vertex's obstacle contact in the previous step (friction bound).
     contact_impulse: Vec<f64>,
+    /// Coarse level of the CG preconditioner (`None` for small meshes).
+    aggregation: Option<Aggregation>,
     /// Velocity change of the previous step: the initial guess of CG.
     dv_prev: Vec<Vec3>,
     steps: u64,
@@ -256,6 +264,13 @@ impl Simulator {
             tri_slots,
             broad: BroadPhase::default(),
             contacts: ContactFinder::default(),
+            aggregation: (n >= COARSE_MIN_VERTICES).then(|| {
+                Aggregation::from_graph(
+                    n,
+                    |i| garment.topology.vertex_neighbors.row(i),
+                    n.div_ceil(COARSE_AGGREGATES).max(COARSE_MIN_SIZE),
+                )
+            }),
             resting: Vec::new(),
             contact_impulse: vec![0.0; n],
             dv_prev: vec![Vec3::zeros(); n],
@@ -616,6 +631,7 @@ impl Simulator {
         };
         let mut cg = PcgResult::default();
         let mut impulse = vec![0.0; contacts.len()];
+        let mut coarse = None;
         for round in 0..=MAX_RELEASE_ROUNDS {
             // The system of this round: base matrix plus contact springs and friction.
             let mut a = k.clone();
@@ -649,7 +665,22 @@ impl Simulator {
                     rhs[i] -= t * ((self.v[i] - c.obstacle_velocity) * g);
                 }
             }
-            let r = pcg::solve(&self.pattern, &a, &rhs, &fl, &zz, &mut dv, settings);
+            if round == 0 {
+                coarse = self
+                    .aggregation
+                    .as_ref()
+                    .and_then(|g| CoarseLevel::new(g, &self.pattern, &a, &fl));
+            }
+            let r = pcg::solve(
+                &self.pattern,
+                &a,
+                &rhs,
+                &fl,
+                &zz,
+                &mut dv,
+                settings,
+                coarse.as_ref(),
+            );
             cg.iterations += r.iterations;
             cg.relative_residual = r.relative_residual;
             cg.converged = r.converged;
