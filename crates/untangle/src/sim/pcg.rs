@@ -169,6 +169,12 @@ impl<'a> CoarseLevel<'a> {
 pub struct PcgSettings {
     /// Relative tolerance on the preconditioned residual norm.
     pub tolerance: f64,
+    /// Absolute floor of the stopping threshold on the preconditioned residual norm
+    /// `sqrt(r^T P r)` (≈ the energy norm of the error; 0: purely relative). The simulator uses
+    /// `tolerance * |g| h * sqrt(total mass)`, an RMS velocity error of `tolerance` times what
+    /// gravity adds in one step, so that a cloth near equilibrium (a tiny right-hand side) is not
+    /// solved to a needlessly tiny absolute error.
+    pub absolute: f64,
     /// Iteration cap.
     pub max_iterations: usize,
 }
@@ -242,6 +248,7 @@ pub fn solve(
     precond(&r, &mut c);
     let mut delta_new = dot(&r, &c);
     let tol2 = settings.tolerance * settings.tolerance;
+    let threshold = (tol2 * delta0).max(settings.absolute * settings.absolute);
     let mut it = 0;
     let rel = |d: f64| {
         if delta0 > 0.0 {
@@ -250,7 +257,7 @@ pub fn solve(
             0.0
         }
     };
-    while delta_new > tol2 * delta0 && it < settings.max_iterations {
+    while delta_new > threshold && it < settings.max_iterations {
         a.mul(pattern, &c, &mut q);
         q.par_chunks_mut(CHUNK).enumerate().for_each(|(ch, qs)| {
             for (k, qi) in qs.iter_mut().enumerate() {
@@ -287,7 +294,7 @@ pub fn solve(
     PcgResult {
         iterations: it,
         relative_residual: rel(delta_new),
-        converged: delta_new <= tol2 * delta0,
+        converged: delta_new <= threshold,
     }
 }
 
@@ -377,6 +384,7 @@ mod tests {
                 &mut x,
                 PcgSettings {
                     tolerance: 1e-12,
+                    absolute: 0.0,
                     max_iterations: 10_000,
                 },
                 coarse.as_ref(),
@@ -427,6 +435,7 @@ mod tests {
             &mut x,
             PcgSettings {
                 tolerance: 1e-14,
+                absolute: 0.0,
                 max_iterations: 3,
             },
             None,

@@ -59,7 +59,8 @@ pub struct SimParams {
     pub gravity: Vec3,
     /// Cloth-cloth friction coefficient.
     pub friction: f64,
-    /// Relative tolerance of CG.
+    /// Tolerance of CG: relative to the right-hand side, with an absolute floor of this times
+    /// the velocity gravity adds in one step (RMS, mass-weighted; see [`PcgSettings::absolute`]).
     pub cg_tolerance: f64,
     /// Iteration cap of CG.
     pub cg_max_iterations: usize,
@@ -170,6 +171,8 @@ pub struct Simulator {
     resting: Vec<Pair>,
     /// Normal impulse of each vertex's obstacle contact in the previous step (friction bound).
     contact_impulse: Vec<f64>,
+    /// Sum of the masses.
+    total_mass: f64,
     /// Coarse level of the CG preconditioner (`None` for small meshes).
     aggregation: Option<Aggregation>,
     /// Velocity change of the previous step: the initial guess of CG.
@@ -245,6 +248,7 @@ impl Simulator {
                 })
             })
             .collect();
+        let total_mass = mass.iter().sum();
         let mut sim = Simulator {
             hinge,
             params,
@@ -264,6 +268,7 @@ impl Simulator {
             tri_slots,
             broad: BroadPhase::default(),
             contacts: ContactFinder::default(),
+            total_mass,
             aggregation: (n >= COARSE_MIN_VERTICES).then(|| {
                 Aggregation::from_graph(
                     n,
@@ -627,6 +632,7 @@ impl Simulator {
         let mut dv = self.dv_prev.clone();
         let settings = PcgSettings {
             tolerance: p.cg_tolerance,
+            absolute: p.cg_tolerance * p.gravity.norm() * h * self.total_mass.sqrt(),
             max_iterations: p.cg_max_iterations,
         };
         let mut cg = PcgResult::default();
@@ -714,6 +720,7 @@ impl Simulator {
                 break;
             }
         }
+        let (obstacle_contacts, contact_springs) = (contacts.len(), springs.len());
         self.contact_impulse.iter_mut().for_each(|l| *l = 0.0);
         for (c, &lam) in contacts.iter().zip(&impulse) {
             self.contact_impulse[c.vertex as usize] = lam;
@@ -778,6 +785,8 @@ impl Simulator {
             collisions,
             energy,
             max_stretch: self.max_stretch(),
+            obstacle_contacts,
+            contact_springs,
             timing: StepTiming {
                 assemble: (t1 - t0).as_secs_f64() * 1e3,
                 solve: (t2 - t1).as_secs_f64() * 1e3,

@@ -332,8 +332,8 @@ pub struct CollisionReport {
     pub remaining_collisions: usize,
     /// Milliseconds in broad phase, proximity, CCD impulses and impact zones.
     pub timing: CollisionTiming,
-    /// Cloth-cloth pairs in resting contact at the start of the step (within twice their
-    /// thickness), sorted; the next step's implicit solve includes them.
+    /// Cloth-cloth pairs in (or approaching) contact during the step, in candidate order; the
+    /// next step's implicit solve includes those still approaching.
     #[serde(skip)]
     pub resting: Vec<Pair>,
 }

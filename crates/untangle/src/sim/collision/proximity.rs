@@ -25,13 +25,12 @@ struct Near {
     geom: Closest,
     target: f64,
     mu: f64,
-    close: bool,
     active: bool,
 }
 
 /// Applies proximity impulses to `v`; returns the number of impulses applied and the cloth-cloth
-/// pairs that started within twice their thickness (resting contacts: the next step treats them
-/// inside the implicit solve, see [`crate::sim::contact`]).
+/// pairs that started within twice their thickness or could come within it during the step
+/// (contacts the next step treats inside the implicit solve, see [`crate::sim::contact`]).
 pub fn repel(
     scene: &Scene,
     v: &mut [Vec3],
@@ -73,7 +72,6 @@ pub fn repel(
                     geom,
                     target,
                     mu: scene.friction_of(p),
-                    close,
                     active,
                 })
             })
@@ -81,7 +79,7 @@ pub fn repel(
     };
     let resting = near
         .iter()
-        .filter(|n| n.close && matches!(n.pair.kind, PairKind::VertexTriangle | PairKind::EdgeEdge))
+        .filter(|n| matches!(n.pair.kind, PairKind::VertexTriangle | PairKind::EdgeEdge))
         .map(|n| n.pair)
         .collect();
     let mut applied = 0;
