@@ -332,7 +332,7 @@ fn impact_zones_and_stall_alone_keep_the_folding_sheet_clean() {
 /// stretched up to 36x), around the mannequin's torso part (`guy_mannequin/body0000.obj`, scaled
 /// to fit inside the shirt), held at its collar and shoulder tops, which move with the body. The
 /// body stands still for 40 steps, then sways and turns (a rigid motion: the shared data hold
-/// body parts, not animation frames; see the simulate command's notes in ARCHITECTURE.md). After every step the intersection analysis with the body as an obstacle finds
+/// body parts, not animation frames; see docs/ARCHITECTURE.md). After every step the intersection analysis with the body as an obstacle finds
 /// neither cloth-cloth nor cloth-body intersections, or the step reports an administrative quit.
 #[test]
 fn shirt_draped_on_a_moving_body_stays_intersection_free() {

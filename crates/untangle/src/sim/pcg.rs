@@ -355,13 +355,7 @@ mod tests {
                 .collect();
             let agg = Aggregation::from_graph(n, |i| &ring[i], 6);
             assert_eq!(agg.count, n.div_ceil(6));
-            let coarse = if seed % 2 == 0 {
-                let c = CoarseLevel::new(&agg, &p, &a, &filter);
-                assert!(c.is_some());
-                c
-            } else {
-                None
-            };
+
             let mut filter = vec![Filter::Free; n];
             let mut z = vec![Vec3::zeros(); n];
             if seed % 3 != 0 {
@@ -374,6 +368,13 @@ mod tests {
                     z[i] = Vec3::new(0.0, 0.01 * i as f64, 0.0);
                 }
             }
+            let coarse = if seed % 2 == 0 {
+                let c = CoarseLevel::new(&agg, &p, &a, &filter);
+                assert!(c.is_some());
+                c
+            } else {
+                None
+            };
             let mut x = vec![Vec3::zeros(); n];
             let res = solve(
                 &p,
