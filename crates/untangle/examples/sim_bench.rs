@@ -87,7 +87,10 @@ fn main() {
                 eprintln!("{}", r.to_json());
             }
         }
-        let n = 30;
+        let n: usize = std::env::var("SIM_BENCH_STEPS")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(30);
         let mut acc = [0.0f64; 7];
         let mut cg = 0usize;
         let mut cands = 0usize;
