@@ -146,6 +146,11 @@ impl<'a> CoarseLevel<'a> {
 
     /// `out += S P A_c^-1 P^T r` (r already filtered).
     fn add_correction(&self, r: &[Vec3], filter: &[Filter], out: &mut [Vec3]) {
+        self.add_correction_dot(r, filter, out);
+    }
+
+    /// [`CoarseLevel::add_correction`], returning `r . (S P A_c^-1 P^T r)`.
+    fn add_correction_dot(&self, r: &[Vec3], filter: &[Filter], out: &mut [Vec3]) -> f64 {
         let mut rc = nalgebra::DVector::<f64>::zeros(3 * self.agg.count);
         for (i, ri) in r.iter().enumerate() {
             let a = 3 * self.agg.of_node[i] as usize;
@@ -154,13 +159,22 @@ impl<'a> CoarseLevel<'a> {
             rc[a + 2] += ri.z;
         }
         self.chol.solve_mut(&mut rc);
-        out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
-            for (k, oi) in o.iter_mut().enumerate() {
-                let i = c * CHUNK + k;
-                let a = 3 * self.agg.of_node[i] as usize;
-                *oi += filter[i].apply(Vec3::new(rc[a], rc[a + 1], rc[a + 2]));
-            }
-        });
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(c, o)| {
+                let mut acc = 0.0;
+                for (k, oi) in o.iter_mut().enumerate() {
+                    let i = c * CHUNK + k;
+                    let a = 3 * self.agg.of_node[i] as usize;
+                    let d = filter[i].apply(Vec3::new(rc[a], rc[a + 1], rc[a + 2]));
+                    *oi += d;
+                    acc += r[i].dot(&d);
+                }
+                acc
+            })
+            .collect::<Vec<f64>>()
+            .iter()
+            .sum()
     }
 }
 
@@ -258,30 +272,53 @@ pub fn solve(
         }
     };
     while delta_new > threshold && it < settings.max_iterations {
+        // Fused passes (fewer parallel rounds per iteration); partial sums per fixed chunk,
+        // added in chunk order, so results do not depend on the thread count.
         a.mul(pattern, &c, &mut q);
-        q.par_chunks_mut(CHUNK).enumerate().for_each(|(ch, qs)| {
-            for (k, qi) in qs.iter_mut().enumerate() {
-                *qi = filter[ch * CHUNK + k].apply(*qi);
-            }
-        });
-        let cq = dot(&c, &q);
+        let cq: f64 = q
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(ch, qs)| {
+                let mut acc = 0.0;
+                for (k, qi) in qs.iter_mut().enumerate() {
+                    let i = ch * CHUNK + k;
+                    *qi = filter[i].apply(*qi);
+                    acc += c[i].dot(qi);
+                }
+                acc
+            })
+            .collect::<Vec<f64>>()
+            .iter()
+            .sum();
         if cq.is_nan() || cq <= 0.0 {
             break;
         }
         let alpha = delta_new / cq;
-        x.par_chunks_mut(CHUNK)
+        // x += alpha c, r -= alpha q, s = filtered block-Jacobi of r, and r . s.
+        let mut rs_dot: f64 = x
+            .par_chunks_mut(CHUNK)
             .zip(r.par_chunks_mut(CHUNK))
+            .zip(s.par_chunks_mut(CHUNK))
             .enumerate()
-            .for_each(|(ch, (xs, rs))| {
+            .map(|(ch, ((xs, rs), ss))| {
+                let mut acc = 0.0;
                 for k in 0..xs.len() {
                     let i = ch * CHUNK + k;
                     xs[k] += alpha * c[i];
                     rs[k] -= alpha * q[i];
+                    ss[k] = filter[i].apply(pinv[i] * rs[k]);
+                    acc += rs[k].dot(&ss[k]);
                 }
-            });
-        precond(&r, &mut s);
+                acc
+            })
+            .collect::<Vec<f64>>()
+            .iter()
+            .sum();
+        if let Some(cl) = coarse {
+            rs_dot += cl.add_correction_dot(&r, filter, &mut s);
+        }
         let delta_old = delta_new;
-        delta_new = dot(&r, &s);
+        delta_new = rs_dot;
         let beta = delta_new / delta_old;
         c.par_chunks_mut(CHUNK).enumerate().for_each(|(ch, cs)| {
             for (k, ci) in cs.iter_mut().enumerate() {

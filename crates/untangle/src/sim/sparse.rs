@@ -218,11 +218,16 @@ impl BsrMatrix {
             for (k, yi) in ys.iter_mut().enumerate() {
                 let i = r0 + k;
                 let (s, e) = (pattern.offsets[i] as usize, pattern.offsets[i + 1] as usize);
-                let mut acc = Vec3::zeros();
-                for slot in s..e {
-                    acc += self.values[slot] * x[pattern.cols[slot] as usize];
+                let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
+                for (m, &c) in self.values[s..e].iter().zip(&pattern.cols[s..e]) {
+                    // Column-major 3x3 times x, written out (the generic product is slower here).
+                    let xv = &x[c as usize];
+                    let d = m.as_slice();
+                    a0 += d[0] * xv.x + d[3] * xv.y + d[6] * xv.z;
+                    a1 += d[1] * xv.x + d[4] * xv.y + d[7] * xv.z;
+                    a2 += d[2] * xv.x + d[5] * xv.y + d[8] * xv.z;
                 }
-                *yi = acc;
+                *yi = Vec3::new(a0, a1, a2);
             }
         });
         self.pairs.mul_add(x, y);
