@@ -23,8 +23,10 @@ pub struct Args {
     /// Step length in seconds.
     #[arg(long, default_value_t = 0.02)]
     pub dt: f64,
-    /// Obstacle: an OBJ file (static), or a directory of OBJ frames with equal vertex counts
-    /// (sorted by name, spread evenly over the steps and interpolated linearly).
+    /// Obstacle: an OBJ file (static), or a directory of OBJ frames (sorted by name, spread
+    /// evenly over the steps and interpolated linearly). Frames meshed differently are first
+    /// brought onto frame 0's mesh by closest-point tracking (`untangle::sim::obstacle::
+    /// track_frames`), which needs consecutive frames to be close.
     #[arg(long)]
     pub body: Option<PathBuf>,
     /// Scale applied to the body (e.g. 0.1 for meshes in decimetres), before the offset.
@@ -154,6 +156,8 @@ pub fn pin_spec(spec: &str, positions: &[Vec3], boundary: &[bool]) -> Result<Vec
 struct Body {
     mesh: Mesh,
     frames: Vec<Vec<Vec3>>,
+    /// The frames did not share one mesh: frame 0's vertices were tracked through them.
+    tracked: bool,
 }
 
 fn place(p: &Vec3, args: &Args) -> Vec3 {
@@ -183,32 +187,29 @@ fn load_body(path: &Path, args: &Args) -> Result<Body> {
     } else {
         vec![path.to_path_buf()]
     };
-    let mut mesh = obj::read_obj(&files[0])?;
-    let mut frames = Vec::new();
+    let mut meshes = Vec::with_capacity(files.len());
     for f in &files {
-        let m = if frames.is_empty() {
-            mesh.clone()
-        } else {
-            obj::read_obj(f)?
-        };
-        if m.positions.len() != mesh.positions.len() {
-            bail!(
-                "{}: body frame has {} vertices but the first frame {} has {}; frames must share one mesh to be interpolated",
-                f.display(),
-                m.positions.len(),
-                files[0].display(),
-                mesh.positions.len()
-            );
-        }
-        frames.push(
-            m.positions
-                .iter()
-                .map(|p| place(p, args))
-                .collect::<Vec<_>>(),
-        );
+        let mut m = obj::read_obj(f)?;
+        m.positions = m.positions.iter().map(|p| place(p, args)).collect();
+        meshes.push(m);
     }
+    let mut mesh = meshes[0].clone();
+    let tracked = meshes
+        .iter()
+        .any(|m| m.positions.len() != mesh.positions.len() || m.triangles != mesh.triangles);
+    let frames = if tracked {
+        // Frames meshed differently: carry frame 0's vertices along by closest points.
+        untangle::sim::obstacle::track_frames(&mesh, &meshes[1..])
+            .with_context(|| path.display().to_string())?
+    } else {
+        meshes.into_iter().map(|m| m.positions).collect()
+    };
     mesh.positions = frames[0].clone();
-    Ok(Body { mesh, frames })
+    Ok(Body {
+        mesh,
+        frames,
+        tracked,
+    })
 }
 
 /// Body positions at the end of step `k` (of `steps`): frames spread evenly, linear in between.
@@ -275,6 +276,13 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         None => None,
     };
     if let Some(b) = &body {
+        if b.tracked {
+            ctx.say(format!(
+                "note: the {} body frames do not share one mesh; frame 0's {} vertices were carried through them by closest points",
+                b.frames.len(),
+                b.mesh.positions.len()
+            ));
+        }
         sim.add_obstacle(Obstacle::from_mesh(
             &b.mesh,
             args.body_thickness,

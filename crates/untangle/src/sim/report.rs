@@ -39,6 +39,10 @@ pub struct StepReport {
     pub time: f64,
     /// The linear solve.
     pub cg: PcgResult,
+    /// Cloth vertices held by an obstacle inside the solve (after releases).
+    pub obstacle_contacts: usize,
+    /// Cloth-cloth contact springs inside the solve (after releases).
+    pub contact_springs: usize,
     /// The collision handling.
     pub collisions: CollisionReport,
     /// Energies at the start of the step.

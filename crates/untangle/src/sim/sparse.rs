@@ -79,11 +79,100 @@ impl BsrPattern {
     }
 }
 
-/// Block values over a [`BsrPattern`].
+/// Block values over a [`BsrPattern`], plus couplings outside the pattern.
 #[derive(Clone, Debug)]
 pub struct BsrMatrix {
     /// One 3x3 block per pattern slot.
     pub values: Vec<Matrix3<f64>>,
+    /// Off-diagonal couplings of contact pairs (their diagonal blocks are in `values`).
+    pub pairs: PairTerms,
+}
+
+/// Rank-3 couplings of contact pairs that the fixed pattern does not hold: pair `c` with nodes
+/// `nodes[c]` (`u32::MAX`: a node without unknowns, e.g. an obstacle), weights `w` and a
+/// symmetric 3x3 `S` contributes the blocks `w_k w_j S` for `k != j` (its diagonal blocks
+/// `w_k^2 S` go into the pattern's diagonal, see [`BsrMatrix::add_pair`]). The product gathers
+/// per row in a fixed order, so it is bit-identical for any thread count.
+#[derive(Clone, Debug, Default)]
+pub struct PairTerms {
+    nodes: Vec<[u32; 4]>,
+    weights: Vec<[f64; 4]>,
+    blocks: Vec<Matrix3<f64>>,
+    /// CSR over rows: `(pair, corner)` entries of row `i` at `offsets[i]..offsets[i + 1]`.
+    offsets: Vec<u32>,
+    entries: Vec<(u32, u8)>,
+}
+
+impl PairTerms {
+    /// Number of pairs.
+    pub fn len(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Whether there is none.
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    fn finish(&mut self, n: usize) {
+        let mut count = vec![0u32; n + 1];
+        for nodes in &self.nodes {
+            for &k in nodes {
+                if k != u32::MAX {
+                    count[k as usize + 1] += 1;
+                }
+            }
+        }
+        for i in 0..n {
+            count[i + 1] += count[i];
+        }
+        let mut fill = count.clone();
+        let mut entries = vec![(0u32, 0u8); count[n] as usize];
+        for (c, nodes) in self.nodes.iter().enumerate() {
+            for (k, &v) in nodes.iter().enumerate() {
+                if v != u32::MAX {
+                    entries[fill[v as usize] as usize] = (c as u32, k as u8);
+                    fill[v as usize] += 1;
+                }
+            }
+        }
+        self.offsets = count;
+        self.entries = entries;
+    }
+
+    /// `y += (off-diagonal pair blocks) x`.
+    fn mul_add(&self, x: &[Vec3], y: &mut [Vec3]) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let s: Vec<Vec3> = self
+            .nodes
+            .par_iter()
+            .zip(&self.weights)
+            .with_min_len(256)
+            .map(|(nodes, w)| {
+                let mut a = Vec3::zeros();
+                for k in 0..4 {
+                    if nodes[k] != u32::MAX {
+                        a += x[nodes[k] as usize] * w[k];
+                    }
+                }
+                a
+            })
+            .collect();
+        y.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
+            for (k, yi) in ys.iter_mut().enumerate() {
+                let i = c * CHUNK + k;
+                for &(p, corner) in
+                    &self.entries[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+                {
+                    let (p, corner) = (p as usize, corner as usize);
+                    let w = self.weights[p][corner];
+                    *yi += self.blocks[p] * ((s[p] - x[i] * w) * w);
+                }
+            }
+        });
+    }
 }
 
 impl BsrMatrix {
@@ -91,7 +180,35 @@ impl BsrMatrix {
     pub fn zeros(pattern: &BsrPattern) -> BsrMatrix {
         BsrMatrix {
             values: vec![Matrix3::zeros(); pattern.nnz()],
+            pairs: PairTerms::default(),
         }
+    }
+
+    /// Adds the pair terms `w_k w_j s` for all corners `k, j` of `nodes` (`u32::MAX` = no
+    /// unknowns): diagonal blocks into the pattern, the others as [`PairTerms`]. Call
+    /// [`BsrMatrix::finish_pairs`] after the last one.
+    pub fn add_pair(
+        &mut self,
+        pattern: &BsrPattern,
+        nodes: [u32; 4],
+        w: [f64; 4],
+        s: Matrix3<f64>,
+    ) {
+        for k in 0..4 {
+            if nodes[k] != u32::MAX {
+                self.values[pattern.diag[nodes[k] as usize] as usize] += s * (w[k] * w[k]);
+            }
+        }
+        if nodes.iter().filter(|&&k| k != u32::MAX).count() > 1 {
+            self.pairs.nodes.push(nodes);
+            self.pairs.weights.push(w);
+            self.pairs.blocks.push(s);
+        }
+    }
+
+    /// Indexes the pairs added by [`BsrMatrix::add_pair`] for the product.
+    pub fn finish_pairs(&mut self, pattern: &BsrPattern) {
+        self.pairs.finish(pattern.rows());
     }
 
     /// `y = A x`, parallel over block rows.
@@ -101,13 +218,19 @@ impl BsrMatrix {
             for (k, yi) in ys.iter_mut().enumerate() {
                 let i = r0 + k;
                 let (s, e) = (pattern.offsets[i] as usize, pattern.offsets[i + 1] as usize);
-                let mut acc = Vec3::zeros();
-                for slot in s..e {
-                    acc += self.values[slot] * x[pattern.cols[slot] as usize];
+                let (mut a0, mut a1, mut a2) = (0.0, 0.0, 0.0);
+                for (m, &c) in self.values[s..e].iter().zip(&pattern.cols[s..e]) {
+                    // Column-major 3x3 times x, written out (the generic product is slower here).
+                    let xv = &x[c as usize];
+                    let d = m.as_slice();
+                    a0 += d[0] * xv.x + d[3] * xv.y + d[6] * xv.z;
+                    a1 += d[1] * xv.x + d[4] * xv.y + d[7] * xv.z;
+                    a2 += d[2] * xv.x + d[5] * xv.y + d[8] * xv.z;
                 }
-                *yi = acc;
+                *yi = Vec3::new(a0, a1, a2);
             }
         });
+        self.pairs.mul_add(x, y);
     }
 
     /// The dense matrix (for tests and small checks).
@@ -119,6 +242,19 @@ impl BsrMatrix {
                 let j = pattern.cols[slot] as usize;
                 d.fixed_view_mut::<3, 3>(3 * i, 3 * j)
                     .copy_from(&self.values[slot]);
+            }
+        }
+        let pt = &self.pairs;
+        for c in 0..pt.len() {
+            for k in 0..4 {
+                for j in 0..4 {
+                    let (a, b) = (pt.nodes[c][k], pt.nodes[c][j]);
+                    if k != j && a != u32::MAX && b != u32::MAX {
+                        let blk = pt.blocks[c] * (pt.weights[c][k] * pt.weights[c][j]);
+                        let mut v = d.fixed_view_mut::<3, 3>(3 * a as usize, 3 * b as usize);
+                        v += blk;
+                    }
+                }
             }
         }
         d
@@ -159,12 +295,46 @@ mod tests {
         a.mul(&p, &x, &mut y);
         let d = a.to_dense(&p);
         let xd = nalgebra::DVector::from_iterator(3 * n, x.iter().flat_map(|v| [v.x, v.y, v.z]));
-        let yd = d * xd;
+        let yd = &d * &xd;
         for i in 0..n {
             for r in 0..3 {
                 assert!((y[i][r] - yd[3 * i + r]).abs() < 1e-9 * (1.0 + yd[3 * i + r].abs()));
             }
         }
+        // Pair couplings (also between rows the pattern does not couple) against the dense
+        // matrix built independently.
+        let mut dense = d.clone();
+        for c in 0..40u32 {
+            let nodes = [
+                c * 29 % n as u32,
+                (c * 13 + 500) % n as u32,
+                u32::MAX,
+                (c * 7 + 3) % n as u32,
+            ];
+            let w = [1.0, -0.3 - c as f64 * 0.01, -0.5, -0.2];
+            let v = Vec3::new(1.0, c as f64 * 0.1, -0.5);
+            let s = v * v.transpose() + Matrix3::identity() * 0.25;
+            a.add_pair(&p, nodes, w, s);
+            for k in 0..4 {
+                for j in 0..4 {
+                    if nodes[k] != u32::MAX && nodes[j] != u32::MAX {
+                        let mut blk = dense
+                            .fixed_view_mut::<3, 3>(3 * nodes[k] as usize, 3 * nodes[j] as usize);
+                        blk += s * (w[k] * w[j]);
+                    }
+                }
+            }
+        }
+        a.finish_pairs(&p);
+        a.mul(&p, &x, &mut y);
+        let yd = &dense
+            * nalgebra::DVector::from_iterator(3 * n, x.iter().flat_map(|v| [v.x, v.y, v.z]));
+        for i in 0..n {
+            for r in 0..3 {
+                assert!((y[i][r] - yd[3 * i + r]).abs() < 1e-9 * (1.0 + yd[3 * i + r].abs()));
+            }
+        }
+        assert!((a.to_dense(&p) - dense).amax() < 1e-12);
         assert_eq!(p.slot(5, 12), Some(p.slot(5, 12).unwrap()));
         assert!(p.slot(5, 13).is_none());
     }

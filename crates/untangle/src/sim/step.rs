@@ -13,9 +13,12 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::collision::{self, broad::BroadPhase, CollisionSettings, Scene};
+use super::collision::{Pair, PairKind};
+use super::contact::{self, ContactFinder};
 use super::forces::stretch::{stretch_terms, StretchTerms, BLOCKS};
 use super::obstacle::{Obstacle, Obstacles};
-use super::pcg::{self, Filter, PcgSettings};
+use super::pcg::{self, Aggregation, CoarseLevel, Filter, PcgResult, PcgSettings};
+use super::policy::Contact;
 use super::policy::ContactPolicy;
 use super::report::{Energy, StepReport, StepTiming};
 use super::rest::RestShape;
@@ -23,6 +26,17 @@ use super::sparse::{BsrMatrix, BsrPattern};
 use crate::error::{Error, Result};
 use crate::geom::{Vec2, Vec3};
 use crate::mesh::{Garment, Topology};
+
+/// Rounds of releasing pulling obstacle contacts and solving again.
+const MAX_RELEASE_ROUNDS: usize = 3;
+/// Meshes from this many vertices on get the coarse-grid CG preconditioner.
+const COARSE_MIN_VERTICES: usize = 200;
+/// Target number of coarse aggregates (the coarse matrix is dense, `3 x` this many unknowns).
+const COARSE_AGGREGATES: usize = 64;
+/// Smallest aggregate.
+const COARSE_MIN_SIZE: usize = 16;
+/// Largest friction damping per step as a multiple of the vertex mass (sticking).
+const FRICTION_CAP: f64 = 100.0;
 
 /// Material, integrator and collision parameters. Units: SI (metres, kilograms, seconds).
 #[derive(Clone, Debug, PartialEq)]
@@ -45,7 +59,8 @@ pub struct SimParams {
     pub gravity: Vec3,
     /// Cloth-cloth friction coefficient.
     pub friction: f64,
-    /// Relative tolerance of CG.
+    /// Tolerance of CG: relative to the right-hand side, with an absolute floor of this times
+    /// the velocity gravity adds in one step (RMS, mass-weighted; see [`PcgSettings::absolute`]).
     pub cg_tolerance: f64,
     /// Iteration cap of CG.
     pub cg_max_iterations: usize,
@@ -151,6 +166,15 @@ pub struct Simulator {
     /// Bending Hessian per slot (a multiple of the identity), rebuilt with the rest shape.
     bend_base: Vec<f64>,
     broad: BroadPhase,
+    contacts: ContactFinder,
+    /// Cloth-cloth pairs in resting contact at the end of the previous step.
+    resting: Vec<Pair>,
+    /// Normal impulse of each vertex's obstacle contact in the previous step (friction bound).
+    contact_impulse: Vec<f64>,
+    /// Sum of the masses.
+    total_mass: f64,
+    /// Coarse level of the CG preconditioner (`None` for small meshes).
+    aggregation: Option<Aggregation>,
     /// Velocity change of the previous step: the initial guess of CG.
     dv_prev: Vec<Vec3>,
     steps: u64,
@@ -224,6 +248,7 @@ impl Simulator {
                 })
             })
             .collect();
+        let total_mass = mass.iter().sum();
         let mut sim = Simulator {
             hinge,
             params,
@@ -242,6 +267,17 @@ impl Simulator {
             pattern,
             tri_slots,
             broad: BroadPhase::default(),
+            contacts: ContactFinder::default(),
+            total_mass,
+            aggregation: (n >= COARSE_MIN_VERTICES).then(|| {
+                Aggregation::from_graph(
+                    n,
+                    |i| garment.topology.vertex_neighbors.row(i),
+                    n.div_ceil(COARSE_AGGREGATES).max(COARSE_MIN_SIZE),
+                )
+            }),
+            resting: Vec::new(),
+            contact_impulse: vec![0.0; n],
             dv_prev: vec![Vec3::zeros(); n],
             steps: 0,
             time: 0.0,
@@ -415,6 +451,10 @@ impl Simulator {
     /// Largest relative edge stretch `|e| / |e_rest| - 1` over all triangle edges (rest lengths
     /// from each triangle's uv).
     pub fn max_stretch(&self) -> f64 {
+        self.stretch_of(&self.x)
+    }
+
+    fn stretch_of(&self, x: &[Vec3]) -> f64 {
         self.triangles
             .par_iter()
             .zip(&self.uv_triangles)
@@ -423,7 +463,7 @@ impl Simulator {
                     .map(|k| {
                         let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
                         let (ua, ub) = (u[k] as usize, u[(k + 1) % 3] as usize);
-                        (self.x[a] - self.x[b]).norm() / (self.uv[ua] - self.uv[ub]).norm() - 1.0
+                        (x[a] - x[b]).norm() / (self.uv[ua] - self.uv[ub]).norm() - 1.0
                     })
                     .fold(f64::MIN, f64::max)
             })
@@ -534,28 +574,6 @@ impl Simulator {
                 }
             })
             .collect();
-        let t1 = Instant::now();
-        let mut dv = self.dv_prev.clone();
-        let cg = pcg::solve(
-            &self.pattern,
-            &k,
-            &b,
-            &filter,
-            &z,
-            &mut dv,
-            PcgSettings {
-                tolerance: p.cg_tolerance,
-                max_iterations: p.cg_max_iterations,
-            },
-        );
-        let mut v: Vec<Vec3> = (0..n).map(|i| self.v[i] + dv[i]).collect();
-        if v.iter().any(|x| !x.iter().all(|c| c.is_finite())) {
-            // A failed solve must not poison the state: keep the old velocities.
-            v.copy_from_slice(&self.v);
-            dv.iter_mut().for_each(|d| *d = Vec3::zeros());
-        }
-        self.dv_prev = dv;
-        let t2 = Instant::now();
         let inv_mass: Vec<f64> = (0..n)
             .map(|i| {
                 if self.pinned[i] {
@@ -565,7 +583,162 @@ impl Simulator {
                 }
             })
             .collect();
-        let collisions = if p.collisions {
+        // Contacts inside the solve (see `contact`): obstacle contacts as constraints, resting
+        // cloth-cloth pairs as implicit one-sided springs.
+        let v_pred: Vec<Vec3> = (0..n).map(|i| self.v[i] + self.dv_prev[i]).collect();
+        let (mut contacts, mut springs) = if p.collisions {
+            let free: Vec<bool> = self.pinned.iter().map(|&q| !q).collect();
+            let contacts = self
+                .contacts
+                .find(&self.x, &v_pred, &free, &self.obstacles, h, policy);
+            let pairs: Vec<([u32; 4], bool, f64)> = self
+                .resting
+                .iter()
+                .filter_map(|pr| {
+                    let (nodes, vt, c) = match pr.kind {
+                        PairKind::VertexTriangle => {
+                            let t = self.triangles[pr.b as usize];
+                            (
+                                [pr.a, t[0], t[1], t[2]],
+                                true,
+                                policy.vertex_triangle(pr.a, pr.b),
+                            )
+                        }
+                        PairKind::EdgeEdge => {
+                            let (e, f) = (
+                                self.topology.edges[pr.a as usize],
+                                self.topology.edges[pr.b as usize],
+                            );
+                            (
+                                [e[0], e[1], f[0], f[1]],
+                                false,
+                                policy.edge_edge(pr.a, pr.b),
+                            )
+                        }
+                        _ => return None,
+                    };
+                    match c {
+                        Contact::Thickness(e) if e > 0.0 && e.is_finite() => Some((nodes, vt, e)),
+                        _ => None,
+                    }
+                })
+                .collect();
+            let springs = contact::cloth_contacts(&self.x, &v_pred, &inv_mass, &pairs, h);
+            (contacts, springs)
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        let t1 = Instant::now();
+        let mut dv = self.dv_prev.clone();
+        let settings = PcgSettings {
+            tolerance: p.cg_tolerance,
+            absolute: p.cg_tolerance * p.gravity.norm() * h * self.total_mass.sqrt(),
+            max_iterations: p.cg_max_iterations,
+        };
+        let mut cg = PcgResult::default();
+        let mut impulse = vec![0.0; contacts.len()];
+        let mut coarse = None;
+        for round in 0..=MAX_RELEASE_ROUNDS {
+            // The system of this round: base matrix plus contact springs and friction.
+            let mut a = k.clone();
+            let mut rhs = b.clone();
+            for s in &springs {
+                let nn = s.normal * s.normal.transpose();
+                a.add_pair(&self.pattern, s.nodes, s.weights, nn * s.stiffness_h2);
+                let push = s.stiffness_h2 / h * (s.thickness - s.end_gap(&self.v, h));
+                for kk in 0..4 {
+                    rhs[s.nodes[kk] as usize] += s.normal * (push * s.weights[kk]);
+                }
+            }
+            a.finish_pairs(&self.pattern);
+            let mut fl = filter.clone();
+            let mut zz = z.clone();
+            for c in &contacts {
+                let i = c.vertex as usize;
+                fl[i] = Filter::Normal(c.normal);
+                zz[i] = c.normal * (c.normal_velocity - c.normal.dot(&self.v[i]));
+                // Coulomb friction as tangential damping bounded by the normal impulse of the
+                // previous step (Baraff & Witkin 1998, Sec. 5.3 treat friction after the solve;
+                // inside it, it decelerates the cloth around the contact consistently).
+                let lam = self.contact_impulse[i];
+                if lam > 0.0 && c.friction > 0.0 {
+                    let rel = v_pred[i] - c.obstacle_velocity;
+                    let vt = rel - c.normal * c.normal.dot(&rel);
+                    let g =
+                        (c.friction * lam / vt.norm().max(1e-9)).min(FRICTION_CAP * self.mass[i]);
+                    let t = Matrix3::identity() - c.normal * c.normal.transpose();
+                    a.values[self.pattern.diag[i] as usize] += t * g;
+                    rhs[i] -= t * ((self.v[i] - c.obstacle_velocity) * g);
+                }
+            }
+            if round == 0 {
+                coarse = self
+                    .aggregation
+                    .as_ref()
+                    .and_then(|g| CoarseLevel::new(g, &self.pattern, &a, &fl));
+            }
+            let r = pcg::solve(
+                &self.pattern,
+                &a,
+                &rhs,
+                &fl,
+                &zz,
+                &mut dv,
+                settings,
+                coarse.as_ref(),
+            );
+            cg.iterations += r.iterations;
+            cg.relative_residual = r.relative_residual;
+            cg.converged = r.converged;
+            if contacts.is_empty() && springs.is_empty() {
+                break;
+            }
+            // Release contacts that pull (Baraff & Witkin's rule) and solve again.
+            let mut res = vec![Vec3::zeros(); n];
+            a.mul(&self.pattern, &dv, &mut res);
+            let last = round == MAX_RELEASE_ROUNDS;
+            let mut keep_c = Vec::with_capacity(contacts.len());
+            impulse.clear();
+            for c in &contacts {
+                let i = c.vertex as usize;
+                let lam = c.normal.dot(&(res[i] - rhs[i]));
+                if lam >= 0.0 || last {
+                    keep_c.push(*c);
+                    impulse.push(lam.max(0.0));
+                }
+            }
+            let v_new: Vec<Vec3> = (0..n).map(|i| self.v[i] + dv[i]).collect();
+            let keep_s: Vec<contact::ClothContact> = springs
+                .iter()
+                .filter(|s| last || s.end_gap(&v_new, h) <= s.thickness)
+                .copied()
+                .collect();
+            let released = keep_c.len() < contacts.len() || keep_s.len() < springs.len();
+            contacts = keep_c;
+            springs = keep_s;
+            if !released {
+                break;
+            }
+        }
+        let (obstacle_contacts, contact_springs) = (contacts.len(), springs.len());
+        self.contact_impulse.iter_mut().for_each(|l| *l = 0.0);
+        for (c, &lam) in contacts.iter().zip(&impulse) {
+            self.contact_impulse[c.vertex as usize] = lam;
+        }
+        let mut v: Vec<Vec3> = (0..n).map(|i| self.v[i] + dv[i]).collect();
+        if v.iter().any(|x| !x.iter().all(|c| c.is_finite())) {
+            // A failed solve must not poison the state: keep the old velocities.
+            v.copy_from_slice(&self.v);
+            dv.iter_mut().for_each(|d| *d = Vec3::zeros());
+        }
+        if v.iter().any(|x| !x.iter().all(|c| c.is_finite())) {
+            // A failed solve must not poison the state: keep the old velocities.
+            v.copy_from_slice(&self.v);
+            dv.iter_mut().for_each(|d| *d = Vec3::zeros());
+        }
+        self.dv_prev = dv;
+        let t2 = Instant::now();
+        let mut collisions = if p.collisions {
             let scene = Scene {
                 x0: &self.x,
                 h,
@@ -592,6 +765,7 @@ impl Simulator {
         } else {
             Default::default()
         };
+        self.resting = std::mem::take(&mut collisions.resting);
         let t3 = Instant::now();
         for i in 0..n {
             self.x[i] += v[i] * h;
@@ -611,6 +785,8 @@ impl Simulator {
             collisions,
             energy,
             max_stretch: self.max_stretch(),
+            obstacle_contacts,
+            contact_springs,
             timing: StepTiming {
                 assemble: (t1 - t0).as_secs_f64() * 1e3,
                 solve: (t2 - t1).as_secs_f64() * 1e3,

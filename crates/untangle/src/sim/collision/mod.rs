@@ -332,6 +332,10 @@ pub struct CollisionReport {
     pub remaining_collisions: usize,
     /// Milliseconds in broad phase, proximity, CCD impulses and impact zones.
     pub timing: CollisionTiming,
+    /// Cloth-cloth pairs in (or approaching) contact during the step, in candidate order; the
+    /// next step's implicit solve includes those still approaching.
+    #[serde(skip)]
+    pub resting: Vec<Pair>,
 }
 
 /// Wall-clock milliseconds per phase of the collision handling.
@@ -370,7 +374,9 @@ pub fn handle(
     rep.timing.broad += ms(t);
     let t = Instant::now();
     if settings.proximity {
-        rep.proximity_impulses = proximity::repel(scene, v, &cands, policy);
+        let (applied, resting) = proximity::repel(scene, v, &cands, policy);
+        rep.proximity_impulses = applied;
+        rep.resting = resting;
     }
     rep.timing.proximity += ms(t);
 

@@ -10,7 +10,7 @@
 
 use rayon::prelude::*;
 
-use super::{closest, impulse, Closest, Pair, Scene};
+use super::{closest, impulse, Closest, Pair, PairKind, Scene};
 use crate::geom::Vec3;
 use crate::sim::policy::ContactPolicy;
 
@@ -20,19 +20,23 @@ pub const PUSH_OUT: f64 = 0.25;
 pub const SWEEPS: usize = 4;
 
 struct Near {
+    pair: Pair,
     nodes: [u32; 4],
     geom: Closest,
     target: f64,
     mu: f64,
+    active: bool,
 }
 
-/// Applies proximity impulses to `v`; returns the number of impulses applied.
+/// Applies proximity impulses to `v`; returns the number of impulses applied and the cloth-cloth
+/// pairs that started within twice their thickness or could come within it during the step
+/// (contacts the next step treats inside the implicit solve, see [`crate::sim::contact`]).
 pub fn repel(
     scene: &Scene,
     v: &mut [Vec3],
     candidates: &[Pair],
     policy: &dyn ContactPolicy,
-) -> usize {
+) -> (usize, Vec<Pair>) {
     let h = scene.h;
     let near: Vec<Near> = {
         let v: &[Vec3] = v;
@@ -50,7 +54,9 @@ pub fn repel(
                     .sum::<f64>()
                     * h;
                 let gap = geom.distance - eps;
-                if gap > 2.0 * reach {
+                let close = geom.distance < 2.0 * eps;
+                let active = gap <= 2.0 * reach;
+                if !active && !close {
                     return None;
                 }
                 // Target normal velocity: approach no closer than eps by the end of the step;
@@ -61,18 +67,25 @@ pub fn repel(
                     -PUSH_OUT * gap / h
                 };
                 Some(Near {
+                    pair: p,
                     nodes,
                     geom,
                     target,
                     mu: scene.friction_of(p),
+                    active,
                 })
             })
             .collect()
     };
+    let resting = near
+        .iter()
+        .filter(|n| matches!(n.pair.kind, PairKind::VertexTriangle | PairKind::EdgeEdge))
+        .map(|n| n.pair)
+        .collect();
     let mut applied = 0;
     for _ in 0..SWEEPS {
         let mut any = false;
-        for n in &near {
+        for n in near.iter().filter(|n| n.active) {
             let g = &n.geom;
             let vn: f64 = (0..4)
                 .map(|k| g.weights[k] * g.normal.dot(&scene.velocity(v, n.nodes[k])))
@@ -102,5 +115,5 @@ pub fn repel(
             break;
         }
     }
-    applied
+    (applied, resting)
 }
