@@ -11,7 +11,7 @@
 
 use std::path::PathBuf;
 use untangle::geom::Vec3;
-use untangle::mesh::{obj, subdivide::subdivide, Garment};
+use untangle::mesh::{obj, subdivide::subdivide, Garment, Mesh};
 use untangle::sim::{SimParams, Simulator, UniformThickness};
 
 fn shared() -> PathBuf {
@@ -21,8 +21,24 @@ fn shared() -> PathBuf {
 }
 
 fn main() {
-    let levels: Vec<usize> = std::env::args()
-        .skip(1)
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().map(String::as_str) == Some("tangled") {
+        let arg = |i: usize, d: usize| {
+            args.get(i)
+                .map(|s| s.parse().expect("a number"))
+                .unwrap_or(d)
+        };
+        let path = shared().join("data/arcsim/meshes/tshirt.obj");
+        let Ok(base) = obj::read_obj(&path) else {
+            eprintln!("skipping: {} not found", path.display());
+            return;
+        };
+        let arcsim_uv = args.iter().any(|a| a == "--arcsim-uv");
+        tangled(&base, arg(1, 2), arg(2, 3), arg(3, 10), arcsim_uv);
+        return;
+    }
+    let levels: Vec<usize> = args
+        .iter()
         .map(|s| s.parse().expect("subdivision levels"))
         .collect();
     let levels = if levels.is_empty() {
@@ -136,4 +152,127 @@ fn main() {
             }
         );
     }
+}
+
+/// `tangled LEVEL PATCHES STEPS [--arcsim-uv]`: the Cha & Ko setting (issue 4). The t-shirt
+/// refined `LEVEL` times (its clean 3D shape is the rest shape; with `--arcsim-uv` ARCSim's
+/// unsewn pattern is, as in `cha_ko_bench`, so the whole shirt also sews itself together), `PATCHES` two-ring patches exploded into balls of one mean edge length (seed 7, as in
+/// `cha_ko_bench`), no gravity; every step the intersection analysis colours the state (not
+/// timed) and the step runs with the m-CCH policy `RedGreen` (red-red pairs skipped, red-green
+/// pairs at epsilon_RG = 0.1 x mean edge length, green-green at 1e-6 m).
+fn tangled(base: &Mesh, level: usize, patches: usize, steps: usize, arcsim_uv: bool) {
+    use rand::{Rng, SeedableRng};
+    use untangle::analysis::{analyze, AnalysisMesh, ObjectKind};
+    use untangle::sim::RedGreen;
+    let mut mesh = base.clone();
+    for _ in 0..level {
+        mesh = subdivide(&mesh);
+    }
+    if !arcsim_uv {
+        // The clean shirt is the rest shape (ARCSim's pattern is unsewn, see the module doc).
+        mesh.uv = Some(untangle::sim::rest::isometric_uv(
+            &mesh.positions,
+            &mesh.triangles,
+        ));
+    }
+    let g0 = Garment::new(mesh.clone()).expect("garment");
+    let avg = g0
+        .topology
+        .edges
+        .iter()
+        .map(|e| (mesh.positions[e[0] as usize] - mesh.positions[e[1] as usize]).norm())
+        .sum::<f64>()
+        / g0.topology.edges.len() as f64;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let interior: Vec<u32> = (0..mesh.positions.len() as u32)
+        .filter(|&v| !g0.topology.boundary_vertex[v as usize])
+        .collect();
+    for _ in 0..patches {
+        let c = interior[rng.random_range(0..interior.len())];
+        let centre = mesh.positions[c as usize];
+        let mut ring = vec![c];
+        for _ in 0..2 {
+            let next: Vec<u32> = ring
+                .iter()
+                .flat_map(|&v| g0.topology.vertex_neighbors.row(v as usize).iter().copied())
+                .collect();
+            ring.extend(next);
+            ring.sort_unstable();
+            ring.dedup();
+        }
+        for v in ring {
+            let r = rng.random_range(0.0..avg);
+            let phi = rng.random_range(0.0..std::f64::consts::TAU);
+            let z: f64 = rng.random_range(-1.0..1.0);
+            let s = (1.0 - z * z).sqrt();
+            mesh.positions[v as usize] =
+                centre + Vec3::new(r * s * phi.cos(), r * s * phi.sin(), r * z);
+        }
+    }
+    let g = Garment::new(mesh.clone()).expect("garment");
+    let params = SimParams {
+        gravity: Vec3::zeros(),
+        ..SimParams::default()
+    };
+    let mut sim = Simulator::new(&g, params).expect("simulator");
+    let (am, _) = AnalysisMesh::new(&[(&mesh, ObjectKind::Cloth)]).expect("analysis mesh");
+    let verbose = std::env::var("SIM_BENCH_VERBOSE").is_ok();
+    println!(
+        "tangled t-shirt x{level}: {} vertices, {patches} exploded patches, eps_rg {:.2e} m",
+        mesh.positions.len(),
+        0.1 * avg
+    );
+    println!(
+        "{:>5} {:>6} {:>6} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>6} {:>5} {:>6} {:>5}",
+        "step",
+        "pairs",
+        "red v",
+        "step ms",
+        "cg",
+        "broad",
+        "prox",
+        "ccd",
+        "zones",
+        "cg it",
+        "ccd i",
+        "zone v",
+        "quit"
+    );
+    let mut total = 0.0;
+    for s in 0..steps {
+        let a = analyze(&am, sim.positions()).expect("analysis");
+        let policy = RedGreen {
+            red_vertex: a.coloring.red_vertex.clone(),
+            red_edge: a.coloring.red_edge.clone(),
+            red_triangle: a.coloring.red_triangle.clone(),
+            epsilon: 1e-6,
+            epsilon_rg: 0.1 * avg,
+        };
+        let r = sim.step(&policy);
+        if verbose {
+            eprintln!("{}", r.to_json());
+        }
+        total += r.timing.total;
+        let c = &r.collisions;
+        println!(
+            "{:>5} {:>6} {:>6} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>6} {:>5} {:>6} {:>5}",
+            s,
+            a.crossings.len(),
+            a.coloring.num_red_vertices(),
+            r.timing.total,
+            r.timing.solve,
+            c.timing.broad,
+            c.timing.proximity,
+            c.timing.impulses,
+            c.timing.zones,
+            r.cg.iterations,
+            c.iterations,
+            c.zone_vertices,
+            r.administrative_quit()
+        );
+    }
+    println!(
+        "mean simulator step with m-CCH: {:.2} ms",
+        total / steps as f64
+    );
 }

@@ -114,6 +114,12 @@ pub fn detect_pair(
     let x0 = scene.positions(v, &nodes, 0.0);
     let x1 = scene.positions(v, &nodes, 1.0);
     let vt = p.is_vertex_triangle();
+    // The candidate boxes were inflated by the largest thickness of the policy; most pairs are
+    // farther apart than their own CCD thickness over the whole step, which the swept boxes of
+    // the two primitives already show.
+    if super::swept_apart(&x0, &x1, vt, eps_c) {
+        return None;
+    }
     let d0 = closest(&x0, vt).distance;
     let eps = eps_c.min(0.5 * d0);
     let toi = ccd_with_start_distance(&x0, &x1, vt, eps, d0)?;

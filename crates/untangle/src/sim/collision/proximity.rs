@@ -26,11 +26,12 @@ struct Near {
     target: f64,
     mu: f64,
     active: bool,
+    close: bool,
 }
 
 /// Applies proximity impulses to `v`; returns the number of impulses applied and the cloth-cloth
-/// pairs that started within twice their thickness or could come within it during the step
-/// (contacts the next step treats inside the implicit solve, see [`crate::sim::contact`]).
+/// pairs that started within twice their thickness or received an impulse (contacts the next
+/// step treats inside the implicit solve, see [`crate::sim::contact`]).
 pub fn repel(
     scene: &Scene,
     v: &mut [Vec3],
@@ -47,7 +48,19 @@ pub fn repel(
                 let eps = scene.thickness(p, policy)?;
                 let nodes = scene.nodes(p);
                 let x = scene.positions(v, &nodes, 0.0);
-                let geom = closest(&x, p.is_vertex_triangle());
+                // Cheap rejection: the reach below is at most the fastest node of each
+                // primitive's speed times h, and the distance at least the gap of their boxes.
+                let vt = p.is_vertex_triangle();
+                let split = if vt { 1 } else { 2 };
+                let speed = |r: std::ops::Range<usize>| {
+                    r.map(|k| scene.velocity(v, nodes[k]).norm())
+                        .fold(0.0f64, f64::max)
+                };
+                let reach_max = (speed(0..split) + speed(split..4)) * h;
+                if super::swept_apart(&x, &x, vt, (2.0 * eps).max(eps + 2.0 * reach_max)) {
+                    return None;
+                }
+                let geom = closest(&x, vt);
                 // Only pairs that could come within eps during the step matter.
                 let reach: f64 = (0..4)
                     .map(|k| geom.weights[k].abs() * scene.velocity(v, nodes[k]).norm())
@@ -73,19 +86,20 @@ pub fn repel(
                     target,
                     mu: scene.friction_of(p),
                     active,
+                    close,
                 })
             })
             .collect()
     };
-    let resting = near
-        .iter()
-        .filter(|n| matches!(n.pair.kind, PairKind::VertexTriangle | PairKind::EdgeEdge))
-        .map(|n| n.pair)
-        .collect();
+    let mut impulsed = vec![false; near.len()];
     let mut applied = 0;
     for _ in 0..SWEEPS {
         let mut any = false;
-        for n in near.iter().filter(|n| n.active) {
+        for (n, hit) in near
+            .iter()
+            .zip(impulsed.iter_mut())
+            .filter(|(n, _)| n.active)
+        {
             let g = &n.geom;
             let vn: f64 = (0..4)
                 .map(|k| g.weights[k] * g.normal.dot(&scene.velocity(v, n.nodes[k])))
@@ -109,11 +123,24 @@ pub fn repel(
                 }
                 applied += 1;
                 any = true;
+                *hit = true;
             }
         }
         if !any {
             break;
         }
     }
+    // Resting contact for the next step: pairs that start close, and pairs whose approach an
+    // impulse just stopped (they end the step near their thickness). Pairs that were merely
+    // within reach of fast motion are not: linearised at the next step's start, far pairs of
+    // fast cloth would all look like contacts.
+    let resting = near
+        .iter()
+        .zip(&impulsed)
+        .filter(|(n, &hit)| {
+            matches!(n.pair.kind, PairKind::VertexTriangle | PairKind::EdgeEdge) && (hit || n.close)
+        })
+        .map(|(n, _)| n.pair)
+        .collect();
     (applied, resting)
 }
