@@ -1,13 +1,18 @@
 //! Simulation benchmark: one step of a garment with collision handling in ordinary motion.
 //!
 //! `cargo run --release -p untangle --example sim_bench [-- LEVELS...]`
+//! `cargo run --release -p untangle --example sim_bench -- sheet [CELLS...]`
+//! `cargo run --release -p untangle --example sim_bench -- tangled [LEVEL PATCHES STEPS]`
 //!
 //! The ARCSim t-shirt (../shared/data/arcsim/meshes/tshirt.obj, or $UNTANGLE_SHARED) refined by
 //! 1-to-4 midpoint subdivision (levels 2 and 3 give about 5k and 20k vertices), pinned at the
 //! shoulders (z up), swinging under gravity with self-collisions (front and back layers). The
 //! shirt's 3D shape is its rest shape (ARCSim's sewing pattern is unsewn: seam triangles start
 //! stretched up to 36x, which would make the first steps a violent sewing rather than ordinary
-//! motion). After 10 warm-up steps, 30 steps are timed; the per-phase mean is printed.
+//! motion). After 10 warm-up steps, 30 steps are timed; the per-phase mean is printed, with the
+//! process CPU time per step. `sheet`: a generated 1 m sheet (no shared data needed) of
+//! `CELLS x CELLS` cells (35, 70, 141: about 1.3k, 5k, 20k vertices) pinned at two corners,
+//! falling and folding onto itself. `tangled`: see [`tangled`].
 
 use std::path::PathBuf;
 use untangle::geom::Vec3;
@@ -37,6 +42,40 @@ fn main() {
         tangled(&base, arg(1, 2), arg(2, 3), arg(3, 10), arcsim_uv);
         return;
     }
+    if args.first().map(String::as_str) == Some("sheet") {
+        let sizes: Vec<usize> = args[1..]
+            .iter()
+            .map(|s| s.parse().expect("cells per side"))
+            .collect();
+        let sizes = if sizes.is_empty() {
+            vec![35, 70, 141]
+        } else {
+            sizes
+        };
+        header("cells");
+        for n in sizes {
+            // A 1 m square sheet, horizontal, pinned at two adjacent corners: it falls, swings
+            // and folds onto itself.
+            let m = untangle::scenes::handkerchief("sheet", n, n, 1.0, 1.0, |uv| {
+                Vec3::new(uv.x, uv.y, 0.0)
+            });
+            let g = Garment::new(m.clone()).expect("valid sheet");
+            let mut sim = Simulator::new(&g, params()).expect("simulator");
+            let corner = |x: f64, y: f64| {
+                (0..m.positions.len())
+                    .min_by(|&a, &b| {
+                        let d = |i: usize| (m.positions[i] - Vec3::new(x, y, 0.0)).norm();
+                        d(a).total_cmp(&d(b))
+                    })
+                    .expect("vertices")
+            };
+            for i in [corner(-0.5, 0.5), corner(0.5, 0.5)] {
+                sim.set_pinned(i as u32, true).unwrap();
+            }
+            timed(n, m.positions.len(), &mut sim);
+        }
+        return;
+    }
     let levels: Vec<usize> = args
         .iter()
         .map(|s| s.parse().expect("subdivision levels"))
@@ -51,21 +90,7 @@ fn main() {
         eprintln!("skipping: {} not found", path.display());
         return;
     };
-    println!("threads: {}", rayon::current_num_threads());
-    println!(
-        "{:>6} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>6} {:>9}",
-        "level",
-        "verts",
-        "step ms",
-        "assem",
-        "cg",
-        "broad",
-        "prox",
-        "ccd",
-        "zones",
-        "cg it",
-        "cands"
-    );
+    header("level");
     for level in levels {
         let mut m = base.clone();
         for _ in 0..level {
@@ -77,11 +102,7 @@ fn main() {
             &m.triangles,
         ));
         let g = Garment::new(m.clone()).expect("valid garment");
-        let params = SimParams {
-            gravity: Vec3::new(0.0, 0.0, -9.81),
-            ..SimParams::default()
-        };
-        let mut sim = Simulator::new(&g, params).expect("simulator");
+        let mut sim = Simulator::new(&g, params()).expect("simulator");
         let top = m.positions.iter().map(|p| p.z).fold(f64::MIN, f64::max);
         for (i, p) in m.positions.iter().enumerate() {
             if p.z >= top - 0.01 {
@@ -95,63 +116,108 @@ fn main() {
             .map(|p| Vec3::new(0.3 * (top - p.z), 0.0, 0.0))
             .collect();
         sim.set_velocities(&v).unwrap();
-        let policy = UniformThickness(2e-3);
-        let verbose = std::env::var("SIM_BENCH_VERBOSE").is_ok();
-        for _ in 0..10 {
-            let r = sim.step(&policy);
-            if verbose {
-                eprintln!("{}", r.to_json());
-            }
-        }
-        let n: usize = std::env::var("SIM_BENCH_STEPS")
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .unwrap_or(30);
-        let mut acc = [0.0f64; 7];
-        let mut cg = 0usize;
-        let mut cands = 0usize;
-        let mut quits = 0;
-        for _ in 0..n {
-            let r = sim.step(&policy);
-            if verbose {
-                eprintln!("{}", r.to_json());
-            }
-            let c = &r.collisions.timing;
-            for (a, x) in acc.iter_mut().zip([
-                r.timing.total,
-                r.timing.assemble,
-                r.timing.solve,
-                c.broad,
-                c.proximity,
-                c.impulses,
-                c.zones,
-            ]) {
-                *a += x / n as f64;
-            }
-            cg += r.cg.iterations;
-            cands += r.collisions.candidates;
-            quits += r.administrative_quit() as usize;
-        }
-        println!(
-            "{:>6} {:>7} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>6.1} {:>9}{}",
-            level,
-            m.positions.len(),
-            acc[0],
-            acc[1],
-            acc[2],
-            acc[3],
-            acc[4],
-            acc[5],
-            acc[6],
-            cg as f64 / n as f64,
-            cands / n,
-            if quits > 0 {
-                format!("  ({quits} administrative quits)")
-            } else {
-                String::new()
-            }
-        );
+        timed(level, m.positions.len(), &mut sim);
     }
+}
+
+fn params() -> SimParams {
+    SimParams {
+        gravity: Vec3::new(0.0, 0.0, -9.81),
+        ..SimParams::default()
+    }
+}
+
+fn header(first: &str) {
+    println!("threads: {}", rayon::current_num_threads());
+    println!(
+        "{:>6} {:>7} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>6} {:>9} {:>7}",
+        first,
+        "verts",
+        "step ms",
+        "assem",
+        "cg",
+        "broad",
+        "prox",
+        "ccd",
+        "zones",
+        "cg it",
+        "cands",
+        "cpu ms"
+    );
+}
+
+/// Process CPU time (user + system) in milliseconds: less sensitive to other processes on a
+/// shared machine than wall-clock time.
+fn cpu_ms() -> f64 {
+    let t = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let rest = t.rsplit(')').next().unwrap_or("");
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| f.get(i).and_then(|s| s.parse::<f64>().ok()).unwrap_or(0.0);
+    // Fields 14 and 15 (utime, stime) are at 11 and 12 after the command name; 100 ticks/s.
+    (ticks(11) + ticks(12)) * 10.0
+}
+
+/// 10 warm-up steps, then `SIM_BENCH_STEPS` (30) timed steps; prints the per-phase means.
+fn timed(label: usize, verts: usize, sim: &mut Simulator) {
+    let policy = UniformThickness(2e-3);
+    let verbose = std::env::var("SIM_BENCH_VERBOSE").is_ok();
+    for _ in 0..10 {
+        let r = sim.step(&policy);
+        if verbose {
+            eprintln!("{}", r.to_json());
+        }
+    }
+    let n: usize = std::env::var("SIM_BENCH_STEPS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(30);
+    let mut acc = [0.0f64; 7];
+    let mut cg = 0usize;
+    let mut cands = 0usize;
+    let mut quits = 0;
+    let cpu0 = cpu_ms();
+    for _ in 0..n {
+        let r = sim.step(&policy);
+        if verbose {
+            eprintln!("{}", r.to_json());
+        }
+        let c = &r.collisions.timing;
+        for (a, x) in acc.iter_mut().zip([
+            r.timing.total,
+            r.timing.assemble,
+            r.timing.solve,
+            c.broad,
+            c.proximity,
+            c.impulses,
+            c.zones,
+        ]) {
+            *a += x / n as f64;
+        }
+        cg += r.cg.iterations;
+        cands += r.collisions.candidates;
+        quits += r.administrative_quit() as usize;
+    }
+    let cpu = (cpu_ms() - cpu0) / n as f64;
+    println!(
+        "{:>6} {:>7} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>8.2} {:>6.1} {:>9} {:>7.1}{}",
+        label,
+        verts,
+        acc[0],
+        acc[1],
+        acc[2],
+        acc[3],
+        acc[4],
+        acc[5],
+        acc[6],
+        cg as f64 / n as f64,
+        cands / n,
+        cpu,
+        if quits > 0 {
+            format!("  ({quits} administrative quits)")
+        } else {
+            String::new()
+        }
+    );
 }
 
 /// `tangled LEVEL PATCHES STEPS [--arcsim-uv]`: the Cha & Ko setting (issue 4). The t-shirt
@@ -238,7 +304,7 @@ fn tangled(base: &Mesh, level: usize, patches: usize, steps: usize, arcsim_uv: b
         "zone v",
         "quit"
     );
-    let mut total = 0.0;
+    let (mut total, mut cpu) = (0.0, 0.0);
     for s in 0..steps {
         let a = analyze(&am, sim.positions()).expect("analysis");
         let policy = RedGreen {
@@ -248,7 +314,9 @@ fn tangled(base: &Mesh, level: usize, patches: usize, steps: usize, arcsim_uv: b
             epsilon: 1e-6,
             epsilon_rg: 0.1 * avg,
         };
+        let c0 = cpu_ms();
         let r = sim.step(&policy);
+        cpu += cpu_ms() - c0;
         if verbose {
             eprintln!("{}", r.to_json());
         }
@@ -272,7 +340,9 @@ fn tangled(base: &Mesh, level: usize, patches: usize, steps: usize, arcsim_uv: b
         );
     }
     println!(
-        "mean simulator step with m-CCH: {:.2} ms",
-        total / steps as f64
+        "mean simulator step with m-CCH: {:.2} ms wall, {:.1} ms CPU ({} threads)",
+        total / steps as f64,
+        cpu / steps as f64,
+        rayon::current_num_threads()
     );
 }

@@ -410,6 +410,8 @@ pub fn handle(
     rep.candidates = cands.len();
     rep.timing.broad += ms(t);
     let t = Instant::now();
+    let n = scene.x0.len();
+    let v_start = v.to_vec();
     if settings.proximity {
         let (applied, resting) = proximity::repel(scene, v, &cands, policy);
         rep.proximity_impulses = applied;
@@ -418,9 +420,11 @@ pub fn handle(
     rep.timing.proximity += ms(t);
 
     // Only pairs with a vertex whose velocity changed since the last CCD pass, or that
-    // collided in it, can collide now; everything else was already found free.
-    let n = scene.x0.len();
-    let mut changed = vec![true; n];
+    // collided in it, can collide now; everything else was already found free. The first pass
+    // tests every candidate: those of the first broad phase whose vertices proximity left
+    // alone (same boxes), and the pairs of the vertices it changed, queried afresh.
+    let mut changed: Vec<bool> = (0..n).map(|i| v[i] != v_start[i]).collect();
+    let mut first = Some(cands);
     let mut previous: Vec<Pair> = Vec::new();
     // Few changed vertices: query from them (see `BroadPhase::candidates_of_changed`) and add
     // the previous pass's colliding pairs that none of them touches; many: filter everything.
@@ -446,11 +450,36 @@ pub fn handle(
             out.dedup();
             out
         };
+    // The first CCD pass (impulse or zone pass) tests every candidate.
+    let pass_candidates = |broad: &broad::BroadPhase,
+                           v: &[Vec3],
+                           changed: &[bool],
+                           previous: &[Pair],
+                           first: &mut Option<Vec<Pair>>|
+     -> Vec<Pair> {
+        match first.take() {
+            Some(all) if 4 * changed.iter().filter(|&&c| c).count() <= n => {
+                let untouched = |p: &Pair| {
+                    scene
+                        .nodes(*p)
+                        .iter()
+                        .all(|&k| k & OBSTACLE != 0 || !changed[k as usize])
+                };
+                let mut c = broad.candidates_of_changed(scene, v, margin, changed);
+                c.extend(all.into_iter().filter(untouched));
+                c.sort_unstable();
+                c.dedup();
+                c
+            }
+            Some(_) => broad.candidates(scene, v, margin),
+            None => select(broad, v, changed, previous),
+        }
+    };
     let (mut fewest, mut no_progress) = (usize::MAX, 0);
     for it in 0..settings.max_impulse_iterations {
         let t = Instant::now();
         broad.update_changed(scene, v, margin, &changed);
-        let cands = select(broad, v, &changed, &previous);
+        let cands = pass_candidates(broad, v, &changed, &previous, &mut first);
         rep.timing.broad += ms(t);
         let t = Instant::now();
         let cols = impulses::detect(scene, v, &cands, policy, &no_skip);
@@ -489,7 +518,7 @@ pub fn handle(
     for _ in 0..settings.max_zone_iterations {
         let tb = Instant::now();
         broad.update_changed(scene, v, margin, &changed);
-        let cands = select(broad, v, &changed, &previous);
+        let cands = pass_candidates(broad, v, &changed, &previous, &mut first);
         rep.timing.broad += ms(tb);
         let skip = |nodes: &[u32; 4]| zones.same_zone(nodes);
         let cols = impulses::detect(scene, v, &cands, policy, &skip);
