@@ -19,6 +19,9 @@ pub struct Zones {
     /// Per zone root: whether the zone moves rigidly (false when pinned vertices with different
     /// prescribed velocities are in it; its pairs are then still tested).
     rigid: Vec<bool>,
+    /// Per vertex: its zone gained members or anchors since the last [`Zones::rigidify`] (read
+    /// at the zone's root).
+    dirty: Vec<bool>,
 }
 
 impl Zones {
@@ -30,6 +33,7 @@ impl Zones {
             anchor_sum: vec![Vec3::zeros(); n],
             anchor_count: vec![0; n],
             rigid: vec![true; n],
+            dirty: vec![false; n],
         }
     }
 
@@ -88,6 +92,7 @@ impl Zones {
                 r = lo;
             }
         }
+        self.dirty[r as usize] = true;
         if !obst.is_empty() {
             let mean = obst
                 .iter()
@@ -124,10 +129,17 @@ impl Zones {
         (g.len(), g.iter().map(|z| z.len()).sum())
     }
 
-    /// Replaces the velocities of every zone by its rigid motion.
+    /// Replaces the velocities of every zone that gained members since the last call by its
+    /// rigid motion. The other zones already move rigidly: recomputing their rigid motion from
+    /// rigid velocities would only add rounding, and would make every one of their vertices
+    /// look changed to the next CCD pass.
     pub fn rigidify(&mut self, scene: &Scene, v: &mut [Vec3]) {
         for zone in self.groups() {
             let root = self.find(zone[0]) as usize;
+            if !self.dirty[root] {
+                continue;
+            }
+            self.dirty[root] = false;
             self.rigid[root] = true;
             let mut first_pinned: Option<Vec3> = None;
             let (mut pinned, mut pinned_count) = (Vec3::zeros(), 0u32);
