@@ -7,7 +7,12 @@
 //! impulses ([`impulses`]) stop every pair that CCD still finds coming within its thickness;
 //! rigid impact zones ([`impact_zones`]) are the fail-safe: zone by zone, colliding vertices
 //! move as rigid bodies until CCD finds nothing. Every pair's thickness (or `Skip`) comes from
-//! the [`ContactPolicy`](super::policy::ContactPolicy).
+//! the [`ContactPolicy`].
+//!
+//! Cost: only the first pass looks at every candidate; later passes re-test the pairs of the
+//! vertices whose velocity changed (queried from those vertices' primitives, see
+//! [`broad::BroadPhase::candidates_of_changed`]) plus the pairs that still collided. Impulse
+//! passes that stop making progress ([`STALL_PASSES`]) hand over to impact zones early.
 
 pub mod broad;
 pub mod impact_zones;
