@@ -20,7 +20,7 @@ pub fn sort_by_key<T: Copy + Default>(v: &mut Vec<T>, key: impl Fn(&T) -> u64) {
     let n = v.len();
     let mut tmp = vec![T::default(); n];
     for (pass, count) in counts.iter().enumerate() {
-        if count.iter().any(|&c| c == n) {
+        if count.contains(&n) {
             continue;
         }
         let shift = 8 * pass;
