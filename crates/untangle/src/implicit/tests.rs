@@ -75,7 +75,15 @@ fn sphere_scene(radii: &[f64], w: &[f64], t: &[f64], body: bool) {
     for i in first..radii.len() {
         let m = sphere_mesh(&format!("l{i}"), &Vec3::zeros(), radii[i], 24);
         let topo = Topology::new(&m).unwrap();
-        let pr = project_layer(&composer, i, &m.positions, &topo, &params(), &|_| {});
+        let pr = project_layer(
+            &composer,
+            i,
+            &m.positions,
+            &m.triangles,
+            &topo,
+            &params(),
+            &|_| {},
+        );
         let expect = expected_radius(radii, w, t, i);
         for p in &pr.positions {
             assert!(
@@ -180,7 +188,15 @@ fn cylinders_with_limited_influence() {
         relaxation: 0.0,
         ..params()
     };
-    let pr = project_layer(&composer, 0, &m.positions, &topo, &pp, &|_| {});
+    let pr = project_layer(
+        &composer,
+        0,
+        &m.positions,
+        &m.triangles,
+        &topo,
+        &pp,
+        &|_| {},
+    );
     let expect = (0.5 + 0.45 - 0.01) / 2.0;
     for (p, q) in pr.positions.iter().zip(&m.positions) {
         let r = (p.x * p.x + p.y * p.y).sqrt();
