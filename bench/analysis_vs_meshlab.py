@@ -2,7 +2,7 @@
 """Side-by-side benchmark: untangle's full intersection analysis vs MeshLab's per-face
 self-intersection selection (pymeshlab), on the same scenes, in the same run.
 
-Usage (from the repository root):  python3 bench/analysis_vs_meshlab.py [--runs N]
+Usage (from the repository root):  python3 bench/analysis_vs_meshlab.py [--runs N] [--instructions]
 
 Installs pymeshlab into target/bench-venv (benchmark only; never a test dependency), builds the
 release binary, writes the scenes with `untangle scene`, then times:
@@ -10,12 +10,17 @@ release binary, writes the scenes with `untangle scene`, then times:
     paths + kinds + regions + colouring), minimum and median over N runs (warm worker pool);
   - MeshLab: compute_selection_by_self_intersections_per_face (detection only), min and median.
 It also cross-checks the number of intersecting faces: MeshLab's selection must equal our
-`intersecting_triangles` on generic scenes (where no triangle merely touches another)."""
+`intersecting_triangles` on generic scenes (where no triangle merely touches another).
+
+With --instructions it also counts instructions per call with valgrind's callgrind (total with 3
+calls minus total with 1 call, halved), single-threaded: a measure independent of machine load.
+Ours comes from the analysis_bench example on the same scenes (same generators and parameters)."""
 import json, os, statistics, subprocess, sys, time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VENV = os.path.join(ROOT, "target", "bench-venv")
 RUNS = int(sys.argv[sys.argv.index("--runs") + 1]) if "--runs" in sys.argv else 15
+INSTRUCTIONS = "--instructions" in sys.argv
 
 
 def venv_python():
@@ -43,6 +48,31 @@ print(min(times), statistics.median(times), sel)
 '''
 
 
+ML_CG = r'''
+import sys, pymeshlab
+ms = pymeshlab.MeshSet()
+ms.load_new_mesh(sys.argv[1])
+for _ in range(int(sys.argv[2])):
+    ms.set_selection_none()
+    ms.compute_selection_by_self_intersections_per_face()
+'''
+
+
+def callgrind_total(cmd, env=None):
+    out = os.path.join(ROOT, "target", "cg.tmp")
+    subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *cmd],
+                   capture_output=True, env=env, check=True)
+    ann = subprocess.run(["callgrind_annotate", out], capture_output=True, text=True).stdout
+    for line in ann.splitlines():
+        if "PROGRAM TOTALS" in line:
+            return int(line.split()[0].replace(",", ""))
+    raise RuntimeError("no callgrind total")
+
+
+def per_call(cmd_for_runs, env=None):
+    return (callgrind_total(cmd_for_runs(3), env) - callgrind_total(cmd_for_runs(1), env)) / 2
+
+
 def main():
     py = venv_python()
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "untangle-cli"], cwd=ROOT, check=True)
@@ -67,6 +97,16 @@ def main():
     print(f"{'scene':<22} {'tris':>7} {'pairs':>6} {'faces':>6} {'ML faces':>8} | {'ours min':>9} {'ours med':>9} | {'ML min':>9} {'ML med':>9} | ratio (ML/ours, min)")
     for r in rows:
         print(f"{r[0]:<22} {r[1]:>7} {r[2]:>6} {r[3]:>6} {r[4]:>8} | {r[5]:>7.2f}ms {r[6]:>7.2f}ms | {r[7]:>7.2f}ms {r[8]:>7.2f}ms | {r[7]/r[5]:.1f}x")
+    if INSTRUCTIONS:
+        subprocess.run(["cargo", "build", "--release", "-q", "-p", "untangle", "--example", "analysis_bench"], cwd=ROOT, check=True)
+        bench = os.path.join(ROOT, "target", "release", "examples", "analysis_bench")
+        env = dict(os.environ, RAYON_NUM_THREADS="1")
+        print("\ninstructions per call (callgrind, single thread):")
+        for name, only, f in [("folded --size 125", "folded n=125 dents=4", "folded--size125.obj"),
+                              ("exploded --seed 0", "exploded seed=0", "exploded--seed0.obj")]:
+            ours = per_call(lambda n: [bench, "--runs", str(n), "--only", only], env)
+            ml = per_call(lambda n: [py, "-c", ML_CG, os.path.join(out, f), str(n)])
+            print(f"{name:<22} ours {ours/1e6:8.1f} M   MeshLab {ml/1e6:8.1f} M   ratio {ml/ours:.2f}x")
 
 
 if __name__ == "__main__":

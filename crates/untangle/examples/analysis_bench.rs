@@ -92,8 +92,14 @@ fn main() {
     }
     if want("exploded") {
         for seed in [0, 1, 2] {
+            let name = format!("exploded seed={seed}");
+            if let Some(o) = &only {
+                if o.len() > "exploded".len() && !name.starts_with(o.as_str()) {
+                    continue;
+                }
+            }
             let s = scenes::exploded::exploded(seed, 14);
-            bench(&format!("exploded seed={seed}"), &s.meshes, runs);
+            bench(&name, &s.meshes, runs);
         }
     }
     if want("garment") {

@@ -5,7 +5,9 @@
 //!
 //! - the global intersection analysis of Wicke et al. 2006 (Sec. 4) with the red/green colouring
 //!   of Cha & Ko 2022 (Sec. 3): [`analysis`];
-//! - procedural scenes with known answers: [`scenes`].
+//! - procedural scenes with known answers: [`scenes`];
+//! - an implicit cloth simulator with full-proof continuous collision handling and a per-pair
+//!   contact policy (Cha & Ko 2022, Sec. 5.2): [`sim`].
 //!
 //! It has no command-line or terminal dependencies; the `untangle` binary is built on top of it.
 
@@ -18,6 +20,8 @@ pub mod fsio;
 pub mod geom;
 pub mod implicit;
 pub mod mesh;
+pub mod radix;
 pub mod scenes;
+pub mod sim;
 
 pub use error::{Error, Result};

@@ -494,3 +494,72 @@ fn bli_paths_get_a_cone_region_near_their_loop_vertex() {
         );
     }
 }
+
+/// An annular strip winding 1.15 turns whose end dips through its beginning: every normal is
+/// close to +z, so only the boundary test of the patch certificate can refuse to cull it. The
+/// analysis must find exactly the brute-force pairs, for several resolutions.
+#[test]
+fn overlapping_spiral_strip_is_not_culled() {
+    for (nt, nr) in [(60usize, 3usize), (120, 4), (240, 6)] {
+        let turns = 1.15;
+        let mut positions = Vec::new();
+        for i in 0..=nt {
+            let th = turns * std::f64::consts::TAU * i as f64 / nt as f64;
+            // A gentle helix rising 0.02 over the first turn, then dipping below the start
+            // (0.05) and rising back above it: the end crosses the start twice.
+            let tau = std::f64::consts::TAU;
+            let z = if th <= tau {
+                0.05 + 0.02 * th / tau
+            } else {
+                let u = (th - tau) / (0.15 * tau);
+                0.07 - 0.06 * (u * std::f64::consts::PI).sin()
+            };
+            for j in 0..=nr {
+                let r = 1.0 + j as f64 / nr as f64;
+                positions.push(Vec3::new(r * th.cos(), r * th.sin(), z + 0.001 * r));
+            }
+        }
+        let id = |i: usize, j: usize| (i * (nr + 1) + j) as u32;
+        let mut triangles = Vec::new();
+        for i in 0..nt {
+            for j in 0..nr {
+                triangles.push([id(i, j), id(i, j + 1), id(i + 1, j + 1)]);
+                triangles.push([id(i, j), id(i + 1, j + 1), id(i + 1, j)]);
+            }
+        }
+        let m = Mesh::new("spiral", positions, triangles).unwrap();
+        let (am, pos, a) = analyse_checked(&[m]);
+        let brute = brute_pairs(&am, &pos);
+        assert!(!brute.is_empty(), "the strip's end pierces its start");
+        assert_eq!(sorted_pairs(&a), brute, "resolution {nt}x{nr}");
+    }
+}
+
+/// The intersection curve of the closed scene lies on sheet A (the plane z = 0.0123 x), is closed
+/// and continuous (consecutive points no farther apart than a triangle's diameter).
+#[test]
+fn intersection_curves_lie_on_both_sheets_and_are_continuous() {
+    let s = scenes::closed(20);
+    let (am, pos, a) = analyse_checked(&s.meshes);
+    let curves = untangle::analysis::curves::tanglement_curves(&am, &pos, &a);
+    assert_eq!(curves.len(), 1);
+    let c = &curves[0];
+    assert_eq!(
+        c.len(),
+        a.paths[0].pieces.len() + 2,
+        "one point per piece, start repeated"
+    );
+    assert_eq!(c.first(), c.last());
+    let cell = 1.0 / 20.0 * 2f64.sqrt() * 1.05;
+    for w in c.windows(2) {
+        assert!(
+            (w[1] - w[0]).norm() <= cell,
+            "continuous: {:?} -> {:?}",
+            w[0],
+            w[1]
+        );
+    }
+    for p in c {
+        assert!((p.z - 0.0123 * p.x).abs() < 1e-9, "on sheet A: {p:?}");
+    }
+}

@@ -52,7 +52,15 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
     if let Some(p) = &args.colored_obj {
         let merged = am.merged(&pos, &meshes.iter().map(|m| &m.0).collect::<Vec<_>>());
         let colors = analysis::coloring::vertex_colors(&am, &a.coloring, &a.segments);
-        obj::write_obj(p, &merged, Some(&colors), "untangle check: red = inside a tanglement, orange = on an intersecting triangle, green = clean, grey = obstacle")?;
+        let mut text = obj::format_obj(
+            &merged,
+            Some(&colors),
+            "untangle check: red = inside a tanglement, orange = on an intersecting triangle, \
+             green = clean, grey = obstacle; objects 'curve_N' are the intersection curves",
+        );
+        let curves = analysis::curves::tanglement_curves(&am, &pos, &a);
+        obj::append_polylines(&mut text, merged.positions.len(), "curve_", &curves);
+        untangle::fsio::write_atomic(p, text.as_bytes())?;
     }
     if !ctx.quiet {
         print!("{}", summary(&report));

@@ -4,3 +4,4 @@ pub mod check;
 pub mod demo;
 pub mod layers;
 pub mod scene;
+pub mod simulate;

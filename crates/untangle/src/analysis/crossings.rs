@@ -14,13 +14,13 @@
 use super::input::{AnalysisMesh, ObjectKind};
 use crate::broad::Bvh;
 use crate::geom::tri_tri::{
-    edge_crosses_triangle, edge_may_overlap_projected, straddling_edge_crosses_triangle,
+    edge_crosses_triangle, edge_may_overlap_projected, straddling_edge_crosses_triangle_fast,
     triangles_may_overlap_projected, CertifiedPlane,
 };
 use crate::geom::{Aabb, Vec3};
 
 /// Edge `edge` passes through triangle `triangle`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Crossing {
     /// Edge index in the analysis mesh's topology.
     pub edge: u32,
@@ -60,29 +60,55 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     let order = bvh.order();
     let slot_tris: Vec<[u32; 3]> = order.iter().map(|&t| tris[t as usize]).collect();
     let slot_planes: Vec<CertifiedPlane> = order.iter().map(|&t| planes[t as usize]).collect();
-    let mut out = bvh.self_slot_pairs(|sa, sb, out: &mut Vec<Crossing>| {
-        let (ta, tb) = (slot_tris[sa as usize], slot_tris[sb as usize]);
-        if ta.iter().any(|v| tb.contains(v)) {
-            return; // shared vertex or edge: the fan pass decides
+    let certifier = super::culling::PatchCertifier::new(tris, topo, pos, &planes, bvh);
+    let certified = std::sync::Mutex::new(Vec::new());
+    let mut out = bvh.self_slot_pairs_culled(
+        |sa, sb, out: &mut Vec<Crossing>| {
+            let (ta, tb) = (slot_tris[sa as usize], slot_tris[sb as usize]);
+            if ta.iter().any(|v| tb.contains(v)) {
+                return; // shared vertex or edge: the fan pass decides
+            }
+            let (a, b) = (order[sa as usize], order[sb as usize]);
+            if has_obstacles
+                && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
+                && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
+            {
+                return;
+            }
+            let (pa, pb) = (&slot_planes[sa as usize], &slot_planes[sb as usize]);
+            ctx.pair_with(a, b, ta, tb, pa, pb, out);
+        },
+        |node, first, len| {
+            let ok = certifier.embedded(node, first, len);
+            if ok {
+                certified
+                    .lock()
+                    .expect("no panics while held")
+                    .push((first, len));
+            }
+            ok
+        },
+    );
+    // Triangles of a certified patch: a fan entirely inside one patch is embedded too.
+    let mut patch_of = vec![u32::MAX; tris.len()];
+    for (p, &(first, len)) in certified
+        .into_inner()
+        .expect("no panics while held")
+        .iter()
+        .enumerate()
+    {
+        for &t in &order[first as usize..(first + len) as usize] {
+            patch_of[t as usize] = p as u32;
         }
-        let (a, b) = (order[sa as usize], order[sb as usize]);
-        if has_obstacles
-            && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
-            && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
-        {
-            return;
-        }
-        let (pa, pb) = (&slot_planes[sa as usize], &slot_planes[sb as usize]);
-        ctx.pair_with(a, b, ta, tb, pa, pb, out);
-    });
-    let _ = topo;
-    out.extend(fan_crossings(&ctx, has_obstacles));
-    out.sort_unstable();
+    }
+    out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
+    crate::radix::sort_by_key(&mut out, |c| ((c.edge as u64) << 32) | c.triangle as u64);
     out
 }
 
 /// Crossings between triangles that share exactly one vertex, fan by fan.
-fn fan_crossings(ctx: &Ctx, has_obstacles: bool) -> Vec<Crossing> {
+/// Fans whose triangles all lie in one certified patch (`patch_of`) are skipped.
+fn fan_crossings(ctx: &Ctx, has_obstacles: bool, patch_of: &[u32]) -> Vec<Crossing> {
     use rayon::prelude::*;
     let (mesh, pos) = (ctx.mesh, ctx.pos);
     let topo = &mesh.topology;
@@ -90,6 +116,13 @@ fn fan_crossings(ctx: &Ctx, has_obstacles: bool) -> Vec<Crossing> {
     let fan = |mut out: Vec<Crossing>, v: u32| {
         let fan = topo.vertex_triangles.row(v as usize);
         let boundary = topo.boundary_vertex[v as usize];
+        let p0 = fan
+            .first()
+            .map(|&t| patch_of[t as usize])
+            .unwrap_or(u32::MAX);
+        if p0 != u32::MAX && fan.iter().all(|&t| patch_of[t as usize] == p0) {
+            return out;
+        }
         if fan.len() < 3 || fan_is_embedded(v, fan, tris, pos, ctx.planes, boundary) {
             return out;
         }
@@ -242,11 +275,19 @@ impl Ctx<'_> {
         out: &mut Vec<Crossing>,
     ) {
         let p = |v: u32| &self.pos[v as usize];
-        let da = ta.map(|v| plane_b.side(p(v)));
+        let da = [
+            plane_b.side(p(ta[0])),
+            plane_b.side(p(ta[1])),
+            plane_b.side(p(ta[2])),
+        ];
         if da[0] != 0 && da[0] == da[1] && da[1] == da[2] {
             return;
         }
-        let db = tb.map(|v| plane_a.side(p(v)));
+        let db = [
+            plane_a.side(p(tb[0])),
+            plane_a.side(p(tb[1])),
+            plane_a.side(p(tb[2])),
+        ];
         if db[0] != 0 && db[0] == db[1] && db[1] == db[2] {
             return;
         }
@@ -295,7 +336,7 @@ impl Ctx<'_> {
             let (p, q) = (&pos[i as usize], &pos[j as usize]);
             let ids = [i, j, tb[0], tb[1], tb[2]];
             let crosses = if sp != 0 && sq != 0 {
-                straddling_edge_crosses_triangle(p, q, pa, pb, pc, ids)
+                straddling_edge_crosses_triangle_fast(p, q, pa, pb, pc, ids)
             } else {
                 edge_may_overlap_projected(p, q, pa, pb, pc)
                     && edge_crosses_triangle(p, q, pa, pb, pc, ids)

@@ -7,6 +7,8 @@
 
 pub mod coloring;
 pub mod crossings;
+pub mod culling;
+pub mod curves;
 pub mod input;
 pub mod paths;
 pub mod regions;

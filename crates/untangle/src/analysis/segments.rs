@@ -57,7 +57,8 @@ pub fn build_segments(
             keyed.push((((lo as u64) << 32) | hi as u64, ci as u32));
         }
     }
-    keyed.sort_unstable();
+    // Stable: equal pairs keep crossing order.
+    crate::radix::sort_by_key(&mut keyed, |k| k.0);
     let mut segments = Vec::with_capacity(keyed.len() / 2 + 1);
     let mut of_crossing = vec![[NONE; 2]; crossings.len()];
     let mut i = 0;

@@ -11,6 +11,8 @@
 use crate::geom::Aabb;
 
 const LEAF_SIZE: usize = 4;
+/// Smallest subtree offered to the culling predicate (smaller ones are cheaper to traverse).
+pub const CULL_MIN: u32 = 32;
 /// Subtrees with fewer primitives than this are traversed sequentially.
 const PAR_CUTOFF: u32 = 256;
 
@@ -25,6 +27,8 @@ struct Node {
     right: u32,
     /// Number of primitives below.
     size: u32,
+    /// First slot below (the subtree holds slots `first..first + size`).
+    first: u32,
 }
 
 impl Node {
@@ -75,24 +79,11 @@ impl Bvh {
                 (morton3(q(c.x, sx), q(c.y, sy), q(c.z, sz)), i as u32)
             })
             .collect();
-        keyed.sort_unstable();
+        crate::radix::sort_by_key(&mut keyed, |k| k.0);
         let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).collect();
         let slot_aabbs: Vec<Aabb> = order.iter().map(|&i| aabbs[i as usize]).collect();
-        // Sizes are known up front (leaves hold up to LEAF_SIZE), so subtrees are built into
-        // disjoint parts of the node array, possibly in parallel, with a fixed layout.
-        let count = node_count(&codes);
-        let mut nodes = vec![
-            Node {
-                aabb: Aabb::EMPTY,
-                start: 0,
-                count: 0,
-                right: 0,
-                size: 0,
-            };
-            count
-        ];
-        build_range(&mut nodes, 0, &codes, &slot_aabbs, 0);
+        let nodes = build_subtree(&codes, &slot_aabbs, 0, 0);
         Bvh {
             nodes,
             order,
@@ -159,12 +150,55 @@ impl Bvh {
         T: Send,
         F: Fn(u32, u32, &mut Vec<T>) + Sync,
     {
+        self.self_slot_pairs_culled(visit, |_, _, _| false)
+    }
+
+    /// Like [`Bvh::self_slot_pairs`], skipping the pairs *within* every subtree (of at least
+    /// [`CULL_MIN`] primitives) for which `cull(node, first_slot, len)` certifies that no two of
+    /// its primitives need visiting. Pairs between a culled subtree and the rest are still
+    /// visited. `node` indexes the values of [`Bvh::fold_up`].
+    pub fn self_slot_pairs_culled<T, F, C>(&self, visit: F, cull: C) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+        C: Fn(usize, u32, u32) -> bool + Sync,
+    {
         if self.nodes.is_empty() {
             return Vec::new();
         }
         let mut out = Vec::new();
-        self.self_rec(0, &visit, &mut out);
+        self.self_rec(0, &visit, &cull, &mut out);
         out
+    }
+
+    /// A value per node computed bottom-up: `leaf(slots)` for a leaf's primitive slots,
+    /// `merge(left, right)` for an inner node. Indexed like the `node` argument of the culling
+    /// predicate of [`Bvh::self_slot_pairs_culled`].
+    pub fn fold_up<V: Clone>(
+        &self,
+        leaf: impl Fn(std::ops::Range<u32>) -> V,
+        merge: impl Fn(&V, &V) -> V,
+    ) -> Vec<V> {
+        let mut vals: Vec<Option<V>> = vec![None; self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let n = self.nodes[i];
+            let v = if n.is_leaf() {
+                leaf(n.start..n.start + n.count)
+            } else {
+                let (l, r) = (
+                    vals[n.start as usize].as_ref(),
+                    vals[n.right as usize].as_ref(),
+                );
+                merge(
+                    l.expect("children after parents"),
+                    r.expect("children after parents"),
+                )
+            };
+            vals[i] = Some(v);
+        }
+        vals.into_iter()
+            .map(|v| v.expect("every node folded"))
+            .collect()
     }
 
     /// The primitive stored in each slot (slots are leaf order, close primitives are close).
@@ -172,13 +206,21 @@ impl Bvh {
         &self.order
     }
 
-    fn self_rec<T: Send, F: Fn(u32, u32, &mut Vec<T>) + Sync>(
+    fn self_rec<
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+        C: Fn(usize, u32, u32) -> bool + Sync,
+    >(
         &self,
         a: usize,
         visit: &F,
+        cull: &C,
         out: &mut Vec<T>,
     ) {
         let n = self.nodes[a];
+        if n.size >= CULL_MIN && cull(a, n.first, n.size) {
+            return;
+        }
         if n.is_leaf() {
             let s = n.start as usize;
             let e = s + n.count as usize;
@@ -198,12 +240,12 @@ impl Bvh {
                     rayon::join(
                         || {
                             let mut o = Vec::new();
-                            self.self_rec(l, visit, &mut o);
+                            self.self_rec(l, visit, cull, &mut o);
                             o
                         },
                         || {
                             let mut o = Vec::new();
-                            self.self_rec(r, visit, &mut o);
+                            self.self_rec(r, visit, cull, &mut o);
                             o
                         },
                     )
@@ -222,8 +264,8 @@ impl Bvh {
                 out.extend(o1);
             }
         } else {
-            self.self_rec(l, visit, out);
-            self.self_rec(r, visit, out);
+            self.self_rec(l, visit, cull, out);
+            self.self_rec(r, visit, cull, out);
             self.cross_rec_slots(self, l, r, visit, out);
         }
     }
@@ -372,51 +414,81 @@ fn split_point(codes: &[u64]) -> usize {
     p.clamp(1, codes.len() - 1)
 }
 
-/// Number of nodes of the tree over `codes`.
-fn node_count(codes: &[u64]) -> usize {
-    if codes.len() <= LEAF_SIZE {
-        return 1;
+/// Builds the subtree over slots `offset..offset + codes.len()` in pre-order, node indices local
+/// to the returned vector (the root is element 0). The top `PAR_DEPTH` levels build their two
+/// halves in parallel and concatenate them, shifting child indices; the result does not depend on
+/// the thread count.
+fn build_subtree(codes: &[u64], boxes: &[Aabb], offset: u32, depth: u32) -> Vec<Node> {
+    const PAR_DEPTH: u32 = 3;
+    if depth < PAR_DEPTH && codes.len() as u32 >= 4 * PAR_CUTOFF {
+        let size = codes.len() as u32;
+        let m = split_point(codes);
+        let (mut left, right) = rayon::join(
+            || build_subtree(&codes[..m], &boxes[..m], offset, depth + 1),
+            || build_subtree(&codes[m..], &boxes[m..], offset + m as u32, depth + 1),
+        );
+        let shift = |nodes: &mut [Node], by: u32| {
+            for n in nodes.iter_mut() {
+                if !n.is_leaf() {
+                    n.start += by;
+                    n.right += by;
+                }
+            }
+        };
+        let (nl, nr) = (left.len() as u32, right.len() as u32);
+        let mut nodes = Vec::with_capacity((1 + nl + nr) as usize);
+        nodes.push(Node {
+            aabb: left[0].aabb.union(&right[0].aabb),
+            start: 1,
+            count: 0,
+            right: 1 + nl,
+            size,
+            first: offset,
+        });
+        shift(&mut left, 1);
+        nodes.extend(left);
+        let base = nodes.len();
+        nodes.extend(right);
+        shift(&mut nodes[base..], 1 + nl);
+        debug_assert_eq!(nodes.len() as u32, 1 + nl + nr);
+        return nodes;
     }
-    let m = split_point(codes);
-    1 + node_count(&codes[..m]) + node_count(&codes[m..])
+    let mut nodes = Vec::with_capacity(2 * codes.len() / LEAF_SIZE + 1);
+    build_sequential(&mut nodes, codes, boxes, offset);
+    nodes
 }
 
-/// Builds the subtree over slots `offset..offset + codes.len()` into `nodes` (its first element is
-/// the subtree's root, at global index `base`).
-fn build_range(nodes: &mut [Node], base: usize, codes: &[u64], boxes: &[Aabb], offset: u32) {
+/// Pre-order build appending to `nodes`; returns the index of the subtree root.
+fn build_sequential(nodes: &mut Vec<Node>, codes: &[u64], boxes: &[Aabb], offset: u32) -> usize {
+    let idx = nodes.len();
     let size = codes.len() as u32;
     if codes.len() <= LEAF_SIZE {
         let aabb = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
-        nodes[0] = Node {
+        nodes.push(Node {
             aabb,
             start: offset,
             count: size,
             right: 0,
             size,
-        };
-        return;
+            first: offset,
+        });
+        return idx;
     }
-    let m = split_point(codes);
-    let left_count = node_count(&codes[..m]);
-    let (root, rest) = nodes.split_at_mut(1);
-    let (left, right) = rest.split_at_mut(left_count);
-    let (lb, rb) = (base + 1, base + 1 + left_count);
-    if codes.len() as u32 >= PAR_CUTOFF {
-        rayon::join(
-            || build_range(left, lb, &codes[..m], &boxes[..m], offset),
-            || build_range(right, rb, &codes[m..], &boxes[m..], offset + m as u32),
-        );
-    } else {
-        build_range(left, lb, &codes[..m], &boxes[..m], offset);
-        build_range(right, rb, &codes[m..], &boxes[m..], offset + m as u32);
-    }
-    root[0] = Node {
-        aabb: left[0].aabb.union(&right[0].aabb),
-        start: lb as u32,
+    nodes.push(Node {
+        aabb: Aabb::EMPTY,
+        start: 0,
         count: 0,
-        right: rb as u32,
+        right: 0,
         size,
-    };
+        first: offset,
+    });
+    let m = split_point(codes);
+    let l = build_sequential(nodes, &codes[..m], &boxes[..m], offset);
+    let r = build_sequential(nodes, &codes[m..], &boxes[m..], offset + m as u32);
+    nodes[idx].aabb = nodes[l].aabb.union(&nodes[r].aabb);
+    nodes[idx].start = l as u32;
+    nodes[idx].right = r as u32;
+    idx
 }
 
 #[cfg(test)]
@@ -478,6 +550,43 @@ mod tests {
                 let want: Vec<u32> = (0..moved.len() as u32).filter(|&i| moved[i as usize].overlaps(q)).collect();
                 prop_assert_eq!(hits, want);
             }
+        }
+    }
+
+    #[test]
+    fn culled_subtrees_lose_exactly_their_inner_pairs() {
+        let raw: Vec<([f64; 3], [f64; 3])> = (0..600)
+            .map(|i| {
+                (
+                    [(i % 30) as f64 * 0.5, (i / 30) as f64 * 0.5, 0.0],
+                    [0.4, 0.4, 0.4],
+                )
+            })
+            .collect();
+        let a = boxes(&raw);
+        let bvh = Bvh::build(&a);
+        let all: Vec<(u32, u32)> = bvh.self_slot_pairs(|i, j, o| o.push((i, j)));
+        // Cull every subtree lying in the first half of the slots.
+        let half = (a.len() / 2) as u32;
+        let culled: Vec<(u32, u32)> =
+            bvh.self_slot_pairs_culled(|i, j, o| o.push((i, j)), |_, f, n| f + n <= half);
+        // fold_up: sizes computed bottom-up equal the subtree sizes.
+        let sizes = bvh.fold_up(|r| r.len() as u32, |a, b| a + b);
+        assert_eq!(sizes[0], a.len() as u32);
+        let mut want: Vec<(u32, u32)> = all
+            .iter()
+            .copied()
+            .filter(|&(i, j)| !(i < half && j < half))
+            .collect();
+        let mut got = culled.clone();
+        want.sort();
+        got.sort();
+        // Pairs inside the culled half may only disappear if their whole subtree was culled;
+        // every pair with a slot outside it must remain.
+        assert!(want.iter().all(|p| got.contains(p)));
+        assert!(got.len() < all.len());
+        for p in &got {
+            assert!(all.contains(p));
         }
     }
 

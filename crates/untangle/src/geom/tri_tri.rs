@@ -58,6 +58,37 @@ pub fn straddling_edge_crosses_triangle(
     orient3d_sos([p, q, c, a], [ip, iq, ic, ia]) == s1
 }
 
+/// [`straddling_edge_crosses_triangle`] with a floating-point fast path: with `A, B, C` the
+/// triangle's corners relative to `p` and `d = q - p`, the three side orientations are the signs
+/// of `d . (A x B)`, `d . (B x C)`, `d . (C x A)` (up to one common sign). When all three are
+/// certainly non-zero (forward error bound) the answer is whether they agree; otherwise the
+/// exact, symbolically perturbed test decides. The answer is always the exact one.
+#[inline]
+pub fn straddling_edge_crosses_triangle_fast(
+    p: &Vec3,
+    q: &Vec3,
+    a: &Vec3,
+    b: &Vec3,
+    c: &Vec3,
+    ids: [u32; 5],
+) -> bool {
+    let d = q - p;
+    let (pa, pb, pc) = (a - p, b - p, c - p);
+    let t1 = d.dot(&pa.cross(&pb));
+    let t2 = d.dot(&pb.cross(&pc));
+    let t3 = d.dot(&pc.cross(&pa));
+    let l1 = |v: &Vec3| v.x.abs() + v.y.abs() + v.z.abs();
+    let (ld, la, lb, lc) = (l1(&d), l1(&pa), l1(&pb), l1(&pc));
+    // Each term is a sum of six triple products of rounded differences; 1e-14 is far above the
+    // accumulated relative error (about 10 ulps) of that evaluation.
+    let k = 1e-14 * ld;
+    let (e1, e2, e3) = (k * la * lb, k * lb * lc, k * lc * la);
+    if t1.abs() > e1 && t2.abs() > e2 && t3.abs() > e3 {
+        return (t1 > 0.0) == (t2 > 0.0) && (t2 > 0.0) == (t3 > 0.0);
+    }
+    straddling_edge_crosses_triangle(p, q, a, b, c, ids)
+}
+
 /// A triangle's plane with a certified floating-point side test.
 #[derive(Clone, Copy, Debug)]
 pub struct CertifiedPlane {
@@ -402,6 +433,30 @@ mod tests {
                         edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], [0, 1, 2, 3, 4])
                     );
                 }
+            }
+        }
+
+        /// The fast straddling test always gives the exact answer.
+        #[test]
+        fn fast_straddling_test_is_exact(
+            pts in proptest::array::uniform5(proptest::array::uniform3(-1.0f64..1.0)),
+            lattice in proptest::array::uniform5(proptest::array::uniform3(-2i32..=2)),
+            tiny in 1e-12f64..1e-6,
+        ) {
+            let near: Vec<Vec3> = pts.iter().enumerate().map(|(i, c)| {
+                // Nearly degenerate: the edge almost through a triangle corner.
+                if i == 1 { v(pts[2][0], pts[2][1], pts[2][2]) * 2.0 - v(pts[0][0], pts[0][1], pts[0][2]) + v(tiny, -tiny, tiny) } else { v(c[0], c[1], c[2]) }
+            }).collect();
+            for p in [
+                pts.iter().map(|c| v(c[0], c[1], c[2])).collect::<Vec<_>>(),
+                lattice.iter().map(|c| v(c[0] as f64, c[1] as f64, c[2] as f64)).collect::<Vec<_>>(),
+                near,
+            ] {
+                let ids = [0, 1, 2, 3, 4];
+                prop_assert_eq!(
+                    straddling_edge_crosses_triangle_fast(&p[0], &p[1], &p[2], &p[3], &p[4], ids),
+                    straddling_edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], ids)
+                );
             }
         }
 

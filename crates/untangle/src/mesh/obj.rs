@@ -335,6 +335,24 @@ pub fn format_obj(mesh: &Mesh, colors: Option<&[[f32; 3]]>, header: &str) -> Str
     s
 }
 
+/// Appends polylines to OBJ text as extra vertices and `l` elements, one object per polyline
+/// named `{prefix}{index}`; `first_vertex` is the number of `v` lines already in `text`.
+pub fn append_polylines(text: &mut String, first_vertex: usize, prefix: &str, lines: &[Vec<Vec3>]) {
+    let mut next = first_vertex + 1;
+    for (i, line) in lines.iter().enumerate() {
+        if line.len() < 2 {
+            continue;
+        }
+        let _ = writeln!(text, "o {prefix}{i}");
+        for p in line {
+            let _ = writeln!(text, "v {} {} {}", p.x, p.y, p.z);
+        }
+        let idx: Vec<String> = (next..next + line.len()).map(|k| k.to_string()).collect();
+        let _ = writeln!(text, "l {}", idx.join(" "));
+        next += line.len();
+    }
+}
+
 /// Writes a mesh as OBJ atomically (temporary file, then rename).
 pub fn write_obj(
     path: &Path,
