@@ -16,7 +16,15 @@ fn main() {
         .nth(2)
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared")));
-    let all = untangle::scenes::outfit::GARMENTS;
+    // LAYERS_BENCH_ORDER=a,b,c: another garment order (innermost first).
+    let order: Option<Vec<String>> = std::env::var("LAYERS_BENCH_ORDER")
+        .ok()
+        .map(|s| s.split(',').map(str::to_string).collect());
+    let owned: Vec<&str> = order
+        .as_ref()
+        .map(|o| o.iter().map(String::as_str).collect())
+        .unwrap_or_else(|| untangle::scenes::outfit::GARMENTS.to_vec());
+    let all = &owned[..];
     println!("threads: {}", rayon::current_num_threads());
     println!("| layers (incl. body) | subdiv | vertices | fields (s) | max field per garment (s) | projection (s) | passes | between | with body |");
     println!("|---|---|---|---|---|---|---|---|---|");
@@ -47,6 +55,32 @@ fn main() {
             let v = verify(Some(&body), &refs, &out.positions).unwrap();
             let passes: Vec<usize> = out.reports.iter().map(|r| r.iterations).collect();
             println!("| {} | {level} | {nv} | {fields:.2} | {maxf:.2} | {proj:.2} | {passes:?} | {} | {} |", k + 1, v.between_layers, v.with_body);
+            if std::env::var_os("LAYERS_BENCH_VERBOSE").is_some() {
+                eprintln!(
+                    "  per layer {:?}, self {}, projection {:.0} ms, repair {:.0} ms",
+                    v.per_layer, v.self_intersections, out.projection_ms, out.repair_ms
+                );
+                let orig: Vec<Vec<untangle::geom::Vec3>> =
+                    garments.iter().map(|m| m.positions.clone()).collect();
+                let v0 = verify(Some(&body), &refs, &orig).unwrap();
+                eprintln!(
+                    "  input: between {}, with body {}, self {}",
+                    v0.between_layers, v0.with_body, v0.self_intersections
+                );
+                eprintln!("  pairs {:?}", out.pair_repair);
+                let mut noop = Params::default();
+                noop.repair.steps = 0;
+                noop.repair.pair_rounds = 0;
+                let o2 = untangle_layers(Some(&body), &inputs, &noop, &|_| {}).unwrap();
+                let v2 = verify(Some(&body), &refs, &o2.positions).unwrap();
+                eprintln!(
+                    "  projection only: between {}, with body {}, self {}",
+                    v2.between_layers, v2.with_body, v2.self_intersections
+                );
+                for r in &out.repair {
+                    eprintln!("  repair {r:?}");
+                }
+            }
             let _ = total;
         }
     }

@@ -7,7 +7,7 @@ use super::grid::Grid;
 use super::hrbf::Hrbf;
 use super::operators::MAX_LAYERS;
 use super::projection::{project_layer, Composer, Layer, LayerProjection, ProjectionParams};
-use super::repair::{repair, LayerRepair, RepairLayer, RepairParams};
+use super::repair::{repair, LayerRepair, PairRepair, RepairLayer, RepairParams};
 use super::sampling;
 use crate::analysis::{self, AnalysisMesh, ObjectKind};
 use crate::error::{Error, Result};
@@ -250,6 +250,8 @@ pub struct Untangled {
     pub tolerance: f64,
     /// What the repair did to each garment.
     pub repair: Vec<LayerRepair>,
+    /// What the symmetric phase of the repair did.
+    pub pair_repair: PairRepair,
     /// Projection time (all garments), ms.
     pub projection_ms: f64,
     /// Repair time, ms.
@@ -388,6 +390,7 @@ pub fn untangle_with_fields(
         body_field_ms,
         tolerance: pp.tolerance,
         repair: Vec::new(),
+        pair_repair: PairRepair::default(),
         projection_ms: 0.0,
         repair_ms: 0.0,
     };
@@ -441,7 +444,7 @@ pub fn untangle_with_fields(
         topos.push(topo);
     }
     out.projection_ms = t_all.elapsed().as_secs_f64() * 1e3;
-    if params.repair.steps > 0 {
+    if params.repair.steps > 0 || params.repair.pair_rounds > 0 {
         let t = Instant::now();
         let rl: Vec<RepairLayer> = garments
             .iter()
@@ -450,6 +453,7 @@ pub fn untangle_with_fields(
                 mesh: g.mesh,
                 topo: &topos[k],
                 field: &fields[k],
+                weight: g.weight,
                 separation: 0.5 * g.thickness
                     + if k > 0 {
                         0.5 * garments[k - 1].thickness
@@ -463,7 +467,7 @@ pub fn untangle_with_fields(
             .iter()
             .map(|p| p.positions.clone())
             .collect();
-        out.repair = repair(
+        (out.repair, out.pair_repair) = repair(
             body.map(|(m, f)| (m, f as &dyn super::field::LayerField)),
             &rl,
             &mut positions,

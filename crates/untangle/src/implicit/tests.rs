@@ -260,8 +260,8 @@ fn hrbf_spheres_meet_the_thickness_rule() {
     assert!(v.is_clean(), "{v:?}");
 }
 
-#[test]
-fn arcsim_pants_and_tshirt_over_the_body() {
+/// The shared data folder, or `None` (with a note) when the ARCSim meshes are absent.
+fn shared_data() -> Option<std::path::PathBuf> {
     let shared = std::env::var_os("UNTANGLE_SHARED")
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|| {
@@ -272,8 +272,42 @@ fn arcsim_pants_and_tshirt_over_the_body() {
             "skipping: ARCSim meshes not found under {}",
             shared.display()
         );
-        return;
+        return None;
     }
+    Some(shared)
+}
+
+#[test]
+fn arcsim_five_layers_are_intersection_free() {
+    // Body, pants, dress, T-shirt, jacket, all deeply intersecting (Table 2's 5 layers).
+    let Some(shared) = shared_data() else { return };
+    let (body, garments) =
+        crate::scenes::outfit::arcsim_outfit(&shared, crate::scenes::outfit::GARMENTS, 1).unwrap();
+    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
+    let before: Vec<Vec<Vec3>> = garments.iter().map(|m| m.positions.clone()).collect();
+    let v0 = verify(Some(&body), &refs, &before).unwrap();
+    assert!(v0.between_layers > 100 && v0.with_body > 100, "{v0:?}");
+    let inputs: Vec<GarmentInput> = garments
+        .iter()
+        .map(|m| GarmentInput {
+            mesh: m,
+            thickness: 0.01,
+            weight: 1.0,
+        })
+        .collect();
+    let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
+    let v = verify(Some(&body), &refs, &out.positions).unwrap();
+    eprintln!(
+        "arcsim 5 layers: before {v0:?}, after {v:?}, {:?}",
+        out.pair_repair
+    );
+    assert!(v.is_clean(), "{v:?}");
+    assert_eq!(out.pair_repair.remaining, 0);
+}
+
+#[test]
+fn arcsim_pants_and_tshirt_over_the_body() {
+    let Some(shared) = shared_data() else { return };
     let (body, garments) =
         crate::scenes::outfit::arcsim_outfit(&shared, &["pants3", "tshirt"], 2).unwrap();
     let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
