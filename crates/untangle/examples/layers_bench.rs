@@ -68,6 +68,23 @@ fn main() {
                     v0.between_layers, v0.with_body, v0.self_intersections
                 );
                 eprintln!("  pairs {:?}", out.pair_repair);
+                let params = Params::default();
+                for s in untangle::implicit::layers::measure_separation(
+                    Some(&body),
+                    &inputs,
+                    &out,
+                    params.body_thickness,
+                )
+                .into_iter()
+                .flatten()
+                {
+                    eprintln!(
+                        "  separation {} over {}: expected {:.4}, {} vertices, mean {:.5}, median {:.5}, rel. error of mean {:.2}%; face to face: {} vertices, mean {:.5}, rel. error {:.2}%",
+                        s.layer, s.against, s.expected, s.count, s.mean, s.median, 100.0 * s.relative_error,
+                        s.face.as_ref().map_or(0, |f| f.count), s.face.as_ref().map_or(0.0, |f| f.mean),
+                        s.face.as_ref().map_or(0.0, |f| 100.0 * f.relative_error)
+                    );
+                }
                 let mut noop = Params::default();
                 noop.repair.steps = 0;
                 noop.repair.pair_rounds = 0;
@@ -77,6 +94,22 @@ fn main() {
                     "  projection only: between {}, with body {}, self {}",
                     v2.between_layers, v2.with_body, v2.self_intersections
                 );
+                for s in untangle::implicit::layers::measure_separation(
+                    Some(&body),
+                    &inputs,
+                    &o2,
+                    params.body_thickness,
+                )
+                .into_iter()
+                .flatten()
+                {
+                    eprintln!(
+                        "  projection only: separation {} over {}: expected {:.4}, {} vertices, mean {:.5}, median {:.5}, rel. error of mean {:.2}%; face to face: {} vertices, mean {:.5}, rel. error {:.2}%",
+                        s.layer, s.against, s.expected, s.count, s.mean, s.median, 100.0 * s.relative_error,
+                        s.face.as_ref().map_or(0, |f| f.count), s.face.as_ref().map_or(0.0, |f| f.mean),
+                        s.face.as_ref().map_or(0.0, |f| 100.0 * f.relative_error)
+                    );
+                }
                 for r in &out.repair {
                     eprintln!("  repair {r:?}");
                 }

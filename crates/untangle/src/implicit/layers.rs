@@ -596,13 +596,17 @@ pub fn measure_separation(
             let me = offset + k;
             let md = MeshDistance::new(below_pos, below_tris);
             let radius = 3.0 * expected + 0.01;
-            let d: Vec<f64> = out.positions[k]
+            let d: Vec<(f64, f64)> = out.positions[k]
                 .iter()
                 .zip(&out.projections[k].run)
-                .filter(|(_, run)| run.0 < me)
-                .filter_map(|(p, _)| md.distance_within(p, radius))
+                .zip(&out.projections[k].active)
+                .filter(|((_, run), &act)| run.0 < me && act & (1 << (me - 1)) != 0)
+                .filter_map(|((p, _), _)| md.distance_and_alignment_within(p, radius))
                 .collect();
-            Some(summarize(k, name, expected, d))
+            let face: Vec<f64> = d.iter().filter(|x| x.1 >= 0.99).map(|x| x.0).collect();
+            let mut s = summarize(k, name.clone(), expected, d.iter().map(|x| x.0).collect());
+            s.face = Some(Box::new(summarize(k, name, expected, face)));
+            Some(s)
         })
         .collect()
 }

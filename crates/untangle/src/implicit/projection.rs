@@ -313,7 +313,7 @@ impl Default for ProjectionParams {
 }
 
 /// One vertex's Newton step: new position, unit field normal, run, residual, step factor.
-type Step = (Vec3, Vec3, (usize, usize), f64, f64);
+type Step = (Vec3, Vec3, ((usize, usize), u32), f64, f64);
 
 /// Result of projecting one layer.
 #[derive(Clone, Debug)]
@@ -326,6 +326,8 @@ pub struct LayerProjection {
     pub moved: Vec<bool>,
     /// Whether a vertex ended in contact (merged with another layer), and the run.
     pub run: Vec<(usize, usize)>,
+    /// Per vertex, the layers that influence it at the end (bit `j`: layer `j`, eq. 12).
+    pub active: Vec<u32>,
     /// Final `|f̂_i − τ_v|` per vertex (0 where undefined).
     pub residual: Vec<f64>,
     /// Newton passes run.
@@ -413,6 +415,7 @@ pub fn project_from(
     let mut moved = vec![false; nv];
     let mut zone = vec![false; nv];
     let mut run = vec![(i, i); nv];
+    let mut active = vec![0u32; nv];
     let mut residual = vec![0.0; nv];
     let mut evaluated = vec![false; nv];
     // Per-vertex step factor: halved when a step made the residual grow (the corrected field
@@ -448,14 +451,14 @@ pub fn project_from(
                     Vec3::zeros()
                 };
                 if r.abs() <= params.tolerance || g2 < 1e-24 {
-                    return (v, Some((pos[v], nrm, c.run, r.abs(), f)));
+                    return (v, Some((pos[v], nrm, (c.run, c.active), r.abs(), f)));
                 }
                 let mut d = c.gradient * (-f.max(1.0 / 64.0) * r / g2);
                 let l = d.norm();
                 if l > params.max_step {
                     d *= params.max_step / l;
                 }
-                (v, Some((pos[v] + d, nrm, c.run, r.abs(), f)))
+                (v, Some((pos[v] + d, nrm, (c.run, c.active), r.abs(), f)))
             })
             .collect();
         let mut any = false;
@@ -472,7 +475,8 @@ pub fn project_from(
                 if nrm != Vec3::zeros() {
                     normal[v] = nrm;
                 }
-                run[v] = rn;
+                run[v] = rn.0;
+                active[v] = rn.1;
                 residual[v] = res;
             }
         }
@@ -518,6 +522,7 @@ pub fn project_from(
         iso: iso.to_vec(),
         moved,
         run,
+        active,
         residual,
         iterations,
         unconverged,
