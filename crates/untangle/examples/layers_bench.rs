@@ -3,6 +3,10 @@
 //! (subdivision levels) and against the number of layers.
 //!
 //! `cargo run -p untangle --release --example layers_bench [LEVELS] [SHARED]`
+//!
+//! Environment: `LAYERS_BENCH_VERBOSE=1` prints, per row, the repair reports, the measured
+//! separations (Table 3 analogue) and the result of the projection alone (a second run with the
+//! repair off); `LAYERS_BENCH_ORDER=pants3,tshirt,...` changes the garments and their order.
 use std::path::PathBuf;
 use std::time::Instant;
 use untangle::implicit::*;
@@ -26,8 +30,8 @@ fn main() {
         .unwrap_or_else(|| untangle::scenes::outfit::GARMENTS.to_vec());
     let all = &owned[..];
     println!("threads: {}", rayon::current_num_threads());
-    println!("| layers (incl. body) | subdiv | vertices | fields (s) | max field per garment (s) | projection (s) | passes | between | with body |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| layers (incl. body) | subdiv | vertices | fields (s) | max field per garment (s) | projection (s) | repair (s) | passes | between | with body | self (in → out) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for level in 1..=max_level {
         for k in 1..=all.len() {
             if level < max_level && k < all.len() {
@@ -54,18 +58,26 @@ fn main() {
             let refs: Vec<&untangle::mesh::Mesh> = garments.iter().collect();
             let v = verify(Some(&body), &refs, &out.positions).unwrap();
             let passes: Vec<usize> = out.reports.iter().map(|r| r.iterations).collect();
-            println!("| {} | {level} | {nv} | {fields:.2} | {maxf:.2} | {proj:.2} | {passes:?} | {} | {} |", k + 1, v.between_layers, v.with_body);
+            let input: Vec<Vec<untangle::geom::Vec3>> =
+                garments.iter().map(|m| m.positions.clone()).collect();
+            let v_in = verify(Some(&body), &refs, &input).unwrap();
+            println!(
+                "| {} | {level} | {nv} | {fields:.2} | {maxf:.2} | {proj:.2} | {:.2} | {passes:?} | {} | {} | {} → {} |",
+                k + 1,
+                out.repair_ms / 1e3,
+                v.between_layers,
+                v.with_body,
+                v_in.self_intersections,
+                v.self_intersections
+            );
             if std::env::var_os("LAYERS_BENCH_VERBOSE").is_some() {
                 eprintln!(
                     "  per layer {:?}, self {}, projection {:.0} ms, repair {:.0} ms",
                     v.per_layer, v.self_intersections, out.projection_ms, out.repair_ms
                 );
-                let orig: Vec<Vec<untangle::geom::Vec3>> =
-                    garments.iter().map(|m| m.positions.clone()).collect();
-                let v0 = verify(Some(&body), &refs, &orig).unwrap();
                 eprintln!(
                     "  input: between {}, with body {}, self {}",
-                    v0.between_layers, v0.with_body, v0.self_intersections
+                    v_in.between_layers, v_in.with_body, v_in.self_intersections
                 );
                 eprintln!("  pairs {:?}", out.pair_repair);
                 let params = Params::default();
