@@ -75,7 +75,8 @@ pub fn place_body(mut m: Mesh, size: &Vec3, centre: &Vec3) -> Mesh {
     m
 }
 
-/// The body and the named garments (innermost first), each subdivided `subdivisions` times.
+/// The body and the named garments (innermost first), each subdivided `subdivisions` times. A
+/// name `NAME*S` is garment `NAME` scaled by `S` about its centroid after placement.
 pub fn arcsim_outfit(
     shared: &Path,
     garments: &[&str],
@@ -89,7 +90,20 @@ pub fn arcsim_outfit(
     );
     let mut out = Vec::new();
     for name in garments {
-        let mut m = place_garment(read_obj(&dir.join(format!("{name}.obj")))?, name);
+        // `NAME*S`: the garment placed as usual, then scaled by `S` about its centroid (more
+        // layers from the same meshes, as the stacked copies of Fig. 9).
+        let (base, scale) = match name.split_once('*') {
+            Some((b, s)) => (b, s.parse::<f64>().unwrap_or(1.0)),
+            None => (*name, 1.0),
+        };
+        let mut m = place_garment(read_obj(&dir.join(format!("{base}.obj")))?, base);
+        if scale != 1.0 {
+            let c = centroid(&m);
+            for p in &mut m.positions {
+                *p = c + (*p - c) * scale;
+            }
+            m.name = name.to_string();
+        }
         for _ in 0..subdivisions {
             m = subdivide(&m);
         }
