@@ -3,6 +3,10 @@
 //! (subdivision levels) and against the number of layers.
 //!
 //! `cargo run -p untangle --release --example layers_bench [LEVELS] [SHARED]`
+//!
+//! Environment: `LAYERS_BENCH_VERBOSE=1` prints, per row, the repair reports, the measured
+//! separations (Table 3 analogue) and the result of the projection alone (a second run with the
+//! repair off); `LAYERS_BENCH_ORDER=pants3,tshirt,...` changes the garments and their order.
 use std::path::PathBuf;
 use std::time::Instant;
 use untangle::implicit::*;
@@ -16,10 +20,18 @@ fn main() {
         .nth(2)
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared")));
-    let all = untangle::scenes::outfit::GARMENTS;
+    // LAYERS_BENCH_ORDER=a,b,c: another garment order (innermost first).
+    let order: Option<Vec<String>> = std::env::var("LAYERS_BENCH_ORDER")
+        .ok()
+        .map(|s| s.split(',').map(str::to_string).collect());
+    let owned: Vec<&str> = order
+        .as_ref()
+        .map(|o| o.iter().map(String::as_str).collect())
+        .unwrap_or_else(|| untangle::scenes::outfit::GARMENTS.to_vec());
+    let all = &owned[..];
     println!("threads: {}", rayon::current_num_threads());
-    println!("| layers (incl. body) | subdiv | vertices | fields (s) | max field per garment (s) | projection (s) | passes | between | with body |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| layers (incl. body) | subdiv | vertices | fields (s) | max field per garment (s) | projection (s) | repair (s) | passes | between | with body | self (in → out) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for level in 1..=max_level {
         for k in 1..=all.len() {
             if level < max_level && k < all.len() {
@@ -46,7 +58,74 @@ fn main() {
             let refs: Vec<&untangle::mesh::Mesh> = garments.iter().collect();
             let v = verify(Some(&body), &refs, &out.positions).unwrap();
             let passes: Vec<usize> = out.reports.iter().map(|r| r.iterations).collect();
-            println!("| {} | {level} | {nv} | {fields:.2} | {maxf:.2} | {proj:.2} | {passes:?} | {} | {} |", k + 1, v.between_layers, v.with_body);
+            let input: Vec<Vec<untangle::geom::Vec3>> =
+                garments.iter().map(|m| m.positions.clone()).collect();
+            let v_in = verify(Some(&body), &refs, &input).unwrap();
+            println!(
+                "| {} | {level} | {nv} | {fields:.2} | {maxf:.2} | {proj:.2} | {:.2} | {passes:?} | {} | {} | {} → {} |",
+                k + 1,
+                out.repair_ms / 1e3,
+                v.between_layers,
+                v.with_body,
+                v_in.self_intersections,
+                v.self_intersections
+            );
+            if std::env::var_os("LAYERS_BENCH_VERBOSE").is_some() {
+                eprintln!(
+                    "  per layer {:?}, self {}, projection {:.0} ms, repair {:.0} ms",
+                    v.per_layer, v.self_intersections, out.projection_ms, out.repair_ms
+                );
+                eprintln!(
+                    "  input: between {}, with body {}, self {}",
+                    v_in.between_layers, v_in.with_body, v_in.self_intersections
+                );
+                eprintln!("  pairs {:?}", out.pair_repair);
+                let params = Params::default();
+                for s in untangle::implicit::layers::measure_separation(
+                    Some(&body),
+                    &inputs,
+                    &out,
+                    params.body_thickness,
+                )
+                .into_iter()
+                .flatten()
+                {
+                    eprintln!(
+                        "  separation {} over {}: expected {:.4}, {} vertices, mean {:.5}, median {:.5}, rel. error of mean {:.2}%; face to face: {} vertices, mean {:.5}, rel. error {:.2}%",
+                        s.layer, s.against, s.expected, s.count, s.mean, s.median, 100.0 * s.relative_error,
+                        s.face.as_ref().map_or(0, |f| f.count), s.face.as_ref().map_or(0.0, |f| f.mean),
+                        s.face.as_ref().map_or(0.0, |f| 100.0 * f.relative_error)
+                    );
+                }
+                let mut noop = Params::default();
+                noop.repair.steps = 0;
+                noop.repair.pair_rounds = 0;
+                let o2 = untangle_layers(Some(&body), &inputs, &noop, &|_| {}).unwrap();
+                let v2 = verify(Some(&body), &refs, &o2.positions).unwrap();
+                eprintln!(
+                    "  projection only: between {}, with body {}, self {}",
+                    v2.between_layers, v2.with_body, v2.self_intersections
+                );
+                for s in untangle::implicit::layers::measure_separation(
+                    Some(&body),
+                    &inputs,
+                    &o2,
+                    params.body_thickness,
+                )
+                .into_iter()
+                .flatten()
+                {
+                    eprintln!(
+                        "  projection only: separation {} over {}: expected {:.4}, {} vertices, mean {:.5}, median {:.5}, rel. error of mean {:.2}%; face to face: {} vertices, mean {:.5}, rel. error {:.2}%",
+                        s.layer, s.against, s.expected, s.count, s.mean, s.median, 100.0 * s.relative_error,
+                        s.face.as_ref().map_or(0, |f| f.count), s.face.as_ref().map_or(0.0, |f| f.mean),
+                        s.face.as_ref().map_or(0.0, |f| 100.0 * f.relative_error)
+                    );
+                }
+                for r in &out.repair {
+                    eprintln!("  repair {r:?}");
+                }
+            }
             let _ = total;
         }
     }

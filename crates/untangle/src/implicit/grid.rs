@@ -90,6 +90,34 @@ impl Grid {
         self.data.len()
     }
 
+    /// Trilinear interpolation of the value alone at `p`; `None` outside the grid.
+    #[inline]
+    pub fn sample_value(&self, p: &Vec3) -> Option<f64> {
+        let q = (p - self.origin) / self.cell;
+        let mut idx = [0usize; 3];
+        let mut t = [0.0f64; 3];
+        for a in 0..3 {
+            let x = q[a];
+            let last = (self.dims[a] - 1) as f64;
+            if !(x >= 0.0 && x <= last) {
+                return None;
+            }
+            let i = (x.floor() as usize).min(self.dims[a] - 2);
+            idx[a] = i;
+            t[a] = x - i as f64;
+        }
+        let (nx, ny) = (self.dims[0], self.dims[1]);
+        let base = idx[0] + nx * (idx[1] + ny * idx[2]);
+        let v =
+            |dx: usize, dy: usize, dz: usize| self.data[base + dx + nx * (dy + ny * dz)][0] as f64;
+        let lerp = |a: f64, b: f64, s: f64| a + (b - a) * s;
+        let x00 = lerp(v(0, 0, 0), v(1, 0, 0), t[0]);
+        let x10 = lerp(v(0, 1, 0), v(1, 1, 0), t[0]);
+        let x01 = lerp(v(0, 0, 1), v(1, 0, 1), t[0]);
+        let x11 = lerp(v(0, 1, 1), v(1, 1, 1), t[0]);
+        Some(lerp(lerp(x00, x10, t[1]), lerp(x01, x11, t[1]), t[2]))
+    }
+
     /// Trilinear interpolation of value and gradient at `p`; `None` outside the grid.
     #[inline]
     pub fn sample(&self, p: &Vec3) -> Option<(f64, Vec3)> {

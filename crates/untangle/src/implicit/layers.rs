@@ -7,6 +7,7 @@ use super::grid::Grid;
 use super::hrbf::Hrbf;
 use super::operators::MAX_LAYERS;
 use super::projection::{project_layer, Composer, Layer, LayerProjection, ProjectionParams};
+use super::repair::{repair, LayerRepair, PairRepair, RepairLayer, RepairParams};
 use super::sampling;
 use crate::analysis::{self, AnalysisMesh, ObjectKind};
 use crate::error::{Error, Result};
@@ -24,6 +25,9 @@ pub struct FieldParams {
     /// Interior vertices where `h_i` is pinned to minus the distance to the boundary (0: the
     /// paper's boundary-only field).
     pub interior_samples: usize,
+    /// Layers of value constraints beyond the open boundary in the co-variant field (0: none,
+    /// see [`sampling::exterior_values`]).
+    pub exterior_layers: usize,
     /// Grid cell; `None`: chosen so that the grid has about `max_nodes` nodes.
     pub cell: Option<f64>,
     /// Node budget of the grid when `cell` is `None`.
@@ -33,6 +37,15 @@ pub struct FieldParams {
     /// Penetrations deeper than this fraction of the garment's box diagonal are not corrected
     /// (the layer is inactive where `|f_i|` exceeds it); the body has no limit.
     pub depth_limit: f64,
+    /// The influence region is `h_i < rim_margin · s` (`s`: boundary sample spacing), so that the
+    /// garment's own rim, where `h_i ≈ 0`, lies inside it.
+    pub rim_margin: f64,
+    /// Width of the band beyond the co-variant field's rim across which the influence fades
+    /// out, relative to the box diagonal (see [`super::field`]).
+    pub rim_fade: f64,
+    /// Width of the band beyond `depth_limit` across which the influence fades out, relative to
+    /// the box diagonal.
+    pub depth_fade: f64,
     /// Seed of the sampling.
     pub seed: u64,
 }
@@ -43,10 +56,14 @@ impl Default for FieldParams {
             samples: 600,
             boundary_samples: 300,
             interior_samples: 150,
+            exterior_layers: 2,
             cell: None,
             max_nodes: 400_000,
             margin: 0.15,
             depth_limit: 0.1,
+            rim_margin: 0.5,
+            rim_fade: 0.04,
+            depth_fade: 0.1,
             seed: 1,
         }
     }
@@ -86,7 +103,17 @@ pub fn build_field(
     let h = if boundary.points.is_empty() {
         None
     } else {
-        let (vp, vv) = sampling::interior_values(mesh, &topo, params.interior_samples);
+        let (mut vp, mut vv) = sampling::interior_values(mesh, &topo, params.interior_samples);
+        if params.exterior_layers > 0 {
+            let (ep, ev) = sampling::exterior_values(
+                &boundary,
+                &surf,
+                2.0 * surf.spacing,
+                params.exterior_layers,
+            );
+            vp.extend(ep);
+            vv.extend(ev);
+        }
         Some(
             Hrbf::fit_mixed(&boundary.points, &boundary.normals, &vp, &vv)
                 .map_err(|e| Error::input(mesh.place(), format!("co-variant field: {e}")))?,
@@ -119,12 +146,14 @@ pub fn build_field(
         h: hg,
         num_samples: surf.points.len(),
         num_boundary_samples: boundary.points.len(),
-        h_margin: 0.5 * boundary.spacing,
+        h_margin: params.rim_margin * boundary.spacing,
+        rim_fade: (params.rim_fade * diag).max(1e-12),
         depth_limit: if closed {
             f64::INFINITY
         } else {
             params.depth_limit * diag
         },
+        depth_fade: (params.depth_fade * diag).max(1e-12),
         timing_ms: [ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4)],
     })
 }
@@ -152,6 +181,8 @@ pub struct Params {
     /// Projection; `tolerance` and `max_step` of 0 are derived from the scene (1e-3 of the
     /// smallest non-zero thickness or of the grid cell; twice the grid cell).
     pub projection: ProjectionParams,
+    /// Repair of the crossings the projection leaves (`steps: 0` turns it off).
+    pub repair: RepairParams,
 }
 
 /// Progress of [`untangle_layers`].
@@ -217,6 +248,14 @@ pub struct Untangled {
     pub body_field_ms: f64,
     /// Tolerance used.
     pub tolerance: f64,
+    /// What the repair did to each garment.
+    pub repair: Vec<LayerRepair>,
+    /// What the symmetric phase of the repair did.
+    pub pair_repair: PairRepair,
+    /// Projection time (all garments), ms.
+    pub projection_ms: f64,
+    /// Repair time, ms.
+    pub repair_ms: f64,
 }
 
 /// Checks the inputs and returns the centre used to orient normals.
@@ -288,7 +327,7 @@ pub fn untangle_layers(
         progress(Stage::Field { done, total });
     }
     untangle_with_fields(
-        body_field.as_ref(),
+        body.zip(body_field.as_ref()),
         garments,
         &fields,
         &field_ms,
@@ -300,7 +339,7 @@ pub fn untangle_layers(
 
 /// Projection with precomputed fields (e.g. from a garment library).
 pub fn untangle_with_fields(
-    body: Option<&GarmentField>,
+    body: Option<(&Mesh, &GarmentField)>,
     garments: &[GarmentInput],
     fields: &[GarmentField],
     field_ms: &[f64],
@@ -312,7 +351,7 @@ pub fn untangle_with_fields(
         return Err(Error::Parameter("one field per garment is needed".into()));
     }
     let mut layers: Vec<Layer> = Vec::new();
-    if let Some(b) = body {
+    if let Some((_, b)) = body {
         layers.push(Layer {
             field: b,
             weight: f64::INFINITY,
@@ -350,7 +389,13 @@ pub fn untangle_with_fields(
         reports: Vec::new(),
         body_field_ms,
         tolerance: pp.tolerance,
+        repair: Vec::new(),
+        pair_repair: PairRepair::default(),
+        projection_ms: 0.0,
+        repair_ms: 0.0,
     };
+    let t_all = Instant::now();
+    let mut topos = Vec::with_capacity(garments.len());
     for (k, g) in garments.iter().enumerate() {
         let t = Instant::now();
         let topo = Topology::new(g.mesh)?;
@@ -358,6 +403,7 @@ pub fn untangle_with_fields(
             &composer,
             offset + k,
             &g.mesh.positions,
+            &g.mesh.triangles,
             &topo,
             &pp,
             &|iteration| {
@@ -394,9 +440,63 @@ pub fn untangle_with_fields(
             field_ms: field_ms.get(k).copied().unwrap_or(0.0),
             projection_ms: ms,
         });
-        out.positions.push(pr.positions.clone());
         out.projections.push(pr);
+        topos.push(topo);
     }
+    out.projection_ms = t_all.elapsed().as_secs_f64() * 1e3;
+    if params.repair.steps > 0 || params.repair.pair_rounds > 0 {
+        let t = Instant::now();
+        let rl: Vec<RepairLayer> = garments
+            .iter()
+            .enumerate()
+            .map(|(k, g)| RepairLayer {
+                mesh: g.mesh,
+                topo: &topos[k],
+                field: &fields[k],
+                weight: g.weight,
+                separation: 0.5 * g.thickness
+                    + if k > 0 {
+                        0.5 * garments[k - 1].thickness
+                    } else {
+                        0.5 * params.body_thickness
+                    },
+            })
+            .collect();
+        let mut positions: Vec<Vec<Vec3>> = out
+            .projections
+            .iter()
+            .map(|p| p.positions.clone())
+            .collect();
+        (out.repair, out.pair_repair) = repair(
+            body.map(|(m, f)| (m, f as &dyn super::field::LayerField)),
+            &rl,
+            &mut positions,
+            &params.repair,
+        );
+        out.repair_ms = t.elapsed().as_secs_f64() * 1e3;
+        for (k, p) in positions.into_iter().enumerate() {
+            let pr = &mut out.projections[k];
+            for (v, (a, b)) in p.iter().zip(&pr.positions).enumerate() {
+                if a != b {
+                    pr.moved[v] = true;
+                }
+            }
+            pr.positions = p;
+            let r = &mut out.reports[k];
+            r.moved = pr.moved.iter().filter(|&&m| m).count();
+            r.max_displacement = pr
+                .positions
+                .iter()
+                .zip(&garments[k].mesh.positions)
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max);
+        }
+    }
+    out.positions = out
+        .projections
+        .iter()
+        .map(|p| p.positions.clone())
+        .collect();
     Ok(out)
 }
 
@@ -496,13 +596,17 @@ pub fn measure_separation(
             let me = offset + k;
             let md = MeshDistance::new(below_pos, below_tris);
             let radius = 3.0 * expected + 0.01;
-            let d: Vec<f64> = out.positions[k]
+            let d: Vec<(f64, f64)> = out.positions[k]
                 .iter()
                 .zip(&out.projections[k].run)
-                .filter(|(_, run)| run.0 < me)
-                .filter_map(|(p, _)| md.distance_within(p, radius))
+                .zip(&out.projections[k].active)
+                .filter(|((_, run), &act)| run.0 < me && act & (1 << (me - 1)) != 0)
+                .filter_map(|((p, _), _)| md.distance_and_alignment_within(p, radius))
                 .collect();
-            Some(summarize(k, name, expected, d))
+            let face: Vec<f64> = d.iter().filter(|x| x.1 >= 0.99).map(|x| x.0).collect();
+            let mut s = summarize(k, name.clone(), expected, d.iter().map(|x| x.0).collect());
+            s.face = Some(Box::new(summarize(k, name, expected, face)));
+            Some(s)
         })
         .collect()
 }

@@ -35,6 +35,7 @@ pub mod hrbf;
 pub mod layers;
 pub mod operators;
 pub mod projection;
+pub mod repair;
 pub mod sampling;
 pub mod separation;
 pub mod shapes;

@@ -16,8 +16,8 @@
 //! target. Vertices are processed in parallel with Jacobi updates (read old, write new), so the
 //! result does not depend on the thread count.
 
-use super::field::LayerField;
-use super::operators::{check_weights, FieldVec, Operator, MAX_LAYERS};
+use super::field::{FieldSample, LayerField};
+use super::operators::{check_weights, Operator, MAX_LAYERS};
 use super::thickness;
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
@@ -47,13 +47,27 @@ pub struct Corrected {
     pub run: (usize, usize),
     /// Bit `j` set when layer `j` is active at `p` (eq. 12).
     pub active: u32,
+    /// Distance in field units to the nearest contact with another active layer (0 in
+    /// contact, infinite when no other layer is active): the budget for the vertex's details.
+    pub margin: f64,
 }
+
+/// Most fading layers blended exactly at one point (`2^k` operator evaluations); further ones
+/// are rounded to present or absent.
+const MAX_FADING: usize = 3;
+
+/// Margins above this are reported as this (field units), so that blends stay finite.
+const MARGIN_CAP: f64 = 1e3;
+const FADE_GRADIENT: f64 = 1.0;
 
 /// Evaluates corrected fields, caching one operator per (layer, active set).
 pub struct Composer<'a> {
     layers: &'a [Layer<'a>],
     cache: Vec<RwLock<HashMap<u32, Arc<Operator>>>>,
 }
+
+/// One configuration's corrected value: value, gradient, run, margin.
+type Config = (f64, Vec3, (usize, usize), f64);
 
 impl<'a> Composer<'a> {
     /// Checks weights and thicknesses.
@@ -87,10 +101,22 @@ impl<'a> Composer<'a> {
         self.layers.is_empty()
     }
 
-    fn operator(&self, i: usize, mask: u32, idx: &[usize], me: usize) -> Arc<Operator> {
+    /// The layers.
+    pub fn layers(&self) -> &[Layer<'a>] {
+        self.layers
+    }
+
+    fn operator(&self, i: usize, mask: u32) -> Arc<Operator> {
         if let Some(op) = self.cache[i].read().expect("not poisoned").get(&mask) {
             return op.clone();
         }
+        let idx: Vec<usize> = (0..self.layers.len())
+            .filter(|&j| mask & (1 << j) != 0)
+            .collect();
+        let me = idx
+            .iter()
+            .position(|&j| j == i)
+            .expect("own layer in the mask");
         let w: Vec<f64> = idx.iter().map(|&j| self.layers[j].weight).collect();
         let op = Arc::new(Operator::new(&w, me).expect("weights checked in Composer::new"));
         self.cache[i]
@@ -103,49 +129,148 @@ impl<'a> Composer<'a> {
 
     /// `f̂_i(p)` and its gradient (eq. 12–14); `None` where layer `i`'s own field is undefined.
     pub fn evaluate(&self, i: usize, p: &Vec3) -> Option<Corrected> {
-        let n = self.layers.len();
+        self.evaluate_forced(i, p, 0)
+    }
+
+    /// The operator of layer `i` over the layers of `mask` (which contains `i`).
+    fn configuration(&self, i: usize, mask: u32, samples: &[Option<FieldSample>]) -> Config {
         let mut idx = [0usize; MAX_LAYERS];
-        let mut vals: FieldVec = [0.0; MAX_LAYERS];
         let mut grads = [Vec3::zeros(); MAX_LAYERS];
         let mut t = [0.0; MAX_LAYERS];
-        let (mut m, mut me, mut mask) = (0usize, 0usize, 0u32);
-        for j in 0..n {
-            let l = &self.layers[j];
-            let fg = if j == i {
-                Some(l.field.field(p)?)
-            } else if l.field.influences(p) {
-                l.field.field(p)
-            } else {
-                None
-            };
-            if let Some((v, g)) = fg {
-                if j == i {
-                    me = m;
-                }
-                idx[m] = j;
-                vals[m] = v;
-                grads[m] = g;
-                t[m] = l.thickness;
-                mask |= 1 << j;
-                m += 1;
-            }
-        }
-        let op = self.operator(i, mask, &idx[..m], me);
-        let off = thickness::offsets(me, &t[..m]);
         let mut x = [0.0; MAX_LAYERS];
+        let (mut m, mut me) = (0usize, 0usize);
+        for (j, s) in samples.iter().enumerate() {
+            if mask & (1 << j) == 0 {
+                continue;
+            }
+            let s = s.expect("sampled");
+            if j == i {
+                me = m;
+            }
+            idx[m] = j;
+            x[m] = s.value;
+            grads[m] = s.gradient;
+            t[m] = self.layers[j].thickness;
+            m += 1;
+        }
+        if m == 1 {
+            return (x[0], grads[0], (i, i), MARGIN_CAP);
+        }
+        let op = self.operator(i, mask);
+        let off = thickness::offsets(me, &t[..m]);
         for k in 0..m {
-            x[k] = vals[k] + off[k];
+            x[k] += off[k];
         }
         let e = op.evaluate(&x);
         let mut gradient = Vec3::zeros();
         for k in 0..m {
             gradient += grads[k] * e.gradient[k];
         }
+        // Margin to contact: how far (in field units) the point is from meeting any other
+        // active layer, 0 in contact.
+        let mut margin = MARGIN_CAP;
+        if e.run != (me, me) {
+            margin = 0.0;
+        } else {
+            for k in 0..m {
+                if k != me {
+                    let mk = if k < me { x[k] } else { -x[k] };
+                    margin = margin.min(mk.max(0.0));
+                }
+            }
+        }
+        (e.value, gradient, (idx[e.run.0], idx[e.run.1]), margin)
+    }
+
+    /// Like [`Composer::evaluate`], with the layers of the bit set `force` (and layer `i`
+    /// itself) fully present wherever their field is defined, whatever their influence regions
+    /// (used by the repair of residual intersections, see [`super::repair`]).
+    ///
+    /// Layers whose influence fades at `p` (Sec. 6.1 with the fade of [`super::field`]) are
+    /// present with probability `1 − s_j(p)`, independently; the corrected field is the
+    /// expectation of the operator over these configurations (`O_i` over the present layers, or
+    /// `f_i` alone when layer `i` itself is absent). Every layer's corrected field averages over
+    /// the *same* configurations at `p`, and each configuration is nested (Sec. 5), so the
+    /// blend keeps the layers in order where they meet, while moving continuously.
+    pub fn evaluate_forced(&self, i: usize, p: &Vec3, force: u32) -> Option<Corrected> {
+        let n = self.layers.len();
+        let mut samples = [None; MAX_LAYERS];
+        for (j, l) in self.layers.iter().enumerate() {
+            samples[j] = l.field.sample(p);
+        }
+        samples[i]?;
+        let forced = |j: usize| force & (1 << j) != 0 || (force != 0 && j == i);
+        let mut base = 0u32;
+        let mut fading: Vec<(usize, f64, Vec3)> = Vec::new();
+        for j in 0..n {
+            let Some(s) = samples[j] else { continue };
+            if forced(j) || s.fade <= 0.0 {
+                base |= 1 << j;
+            } else if s.fade < 1.0 {
+                fading.push((j, s.fade, s.fade_gradient));
+            }
+        }
+        if fading.len() > MAX_FADING {
+            // Keep the most uncertain ones; round the others.
+            fading.sort_by(|a, b| {
+                (a.1 - 0.5)
+                    .abs()
+                    .total_cmp(&(b.1 - 0.5).abs())
+                    .then(a.0.cmp(&b.0))
+            });
+            for &(j, s, _) in &fading[MAX_FADING..] {
+                if s < 0.5 {
+                    base |= 1 << j;
+                }
+            }
+            fading.truncate(MAX_FADING);
+        }
+        let nf = fading.len();
+        let (mut value, mut gradient, mut margin) = (0.0, Vec3::zeros(), 0.0);
+        let mut best = (-1.0, (i, i));
+        for c in 0u32..(1 << nf) {
+            let mut mask = base;
+            let mut w = 1.0;
+            for (k, &(j, s, _)) in fading.iter().enumerate() {
+                if c & (1 << k) != 0 {
+                    mask |= 1 << j;
+                    w *= 1.0 - s;
+                } else {
+                    w *= s;
+                }
+            }
+            let (v, g, run, mg) = if mask & (1 << i) == 0 {
+                let s = samples[i].expect("sampled");
+                (s.value, s.gradient, (i, i), MARGIN_CAP)
+            } else {
+                self.configuration(i, mask, &samples)
+            };
+            // ∇w: product rule over the fading layers.
+            let mut dw = Vec3::zeros();
+            for (k, &(_, s, ds)) in fading.iter().enumerate() {
+                let mut rest = 1.0;
+                for (l, &(_, s2, _)) in fading.iter().enumerate() {
+                    if l != k {
+                        rest *= if c & (1 << l) != 0 { 1.0 - s2 } else { s2 };
+                    }
+                }
+                let _ = s;
+                dw += ds * if c & (1 << k) != 0 { -rest } else { rest };
+            }
+            value += w * v;
+            gradient += g * w + dw * v * FADE_GRADIENT;
+            margin += w * mg;
+            if w > best.0 {
+                best = (w, run);
+            }
+        }
+        let active = fading.iter().fold(base, |m, &(j, _, _)| m | 1 << j);
         Some(Corrected {
-            value: e.value,
+            value,
             gradient,
-            run: (idx[e.run.0], idx[e.run.1]),
-            active: mask,
+            run: best.1,
+            active,
+            margin,
         })
     }
 }
@@ -153,38 +278,42 @@ impl<'a> Composer<'a> {
 /// Parameters of the projection (Sec. 6.3).
 #[derive(Clone, Debug)]
 pub struct ProjectionParams {
-    /// Newton steps interleaved with tangential relaxation.
-    pub relax_iterations: usize,
-    /// Cap on all Newton steps (interleaved and final).
+    /// Cap on the Newton passes.
     pub max_iterations: usize,
-    /// Step factor of the interleaved Newton steps (the final ones use 1).
-    pub damping: f64,
-    /// Fraction of the tangential relaxation displacement applied per step.
+    /// Passes during which tangential relaxation is interleaved with the Newton steps.
+    pub relax_iterations: usize,
+    /// Fraction of the tangential relaxation displacement applied per pass.
     pub relaxation: f64,
-    /// A vertex has converged when `|f̂_i − ε_v| ≤ tolerance` (field units ≈ length).
+    /// A vertex has converged when `|f̂_i − τ_v| ≤ tolerance` (field units ≈ length).
     pub tolerance: f64,
     /// Largest displacement of one Newton step.
     pub max_step: f64,
     /// Rings added around moved vertices to form the relaxed zone.
     pub zone_rings: usize,
+    /// Share of the margin to contact that a vertex's detail may use: the target iso-value is
+    /// `τ_v = clamp(ε_v, ±share · margin)` (see [`target_iso`]).
+    pub detail_share: f64,
+    /// Undo the relaxation moves that would invert a triangle (see `guard_flips`).
+    pub prevent_flips: bool,
 }
 
 impl Default for ProjectionParams {
     fn default() -> Self {
         ProjectionParams {
-            relax_iterations: 10,
-            max_iterations: 80,
-            damping: 0.6,
+            max_iterations: 60,
+            relax_iterations: 20,
             relaxation: 0.5,
             tolerance: 1e-5,
             max_step: 0.02,
             zone_rings: 2,
+            detail_share: 0.5,
+            prevent_flips: true,
         }
     }
 }
 
 /// One vertex's Newton step: new position, unit field normal, run, residual, step factor.
-type Step = (Vec3, Vec3, (usize, usize), f64, f64);
+type Step = (Vec3, Vec3, ((usize, usize), u32), f64, f64);
 
 /// Result of projecting one layer.
 #[derive(Clone, Debug)]
@@ -197,12 +326,27 @@ pub struct LayerProjection {
     pub moved: Vec<bool>,
     /// Whether a vertex ended in contact (merged with another layer), and the run.
     pub run: Vec<(usize, usize)>,
-    /// Final `|f̂_i − ε_v|` per vertex (0 where undefined).
+    /// Per vertex, the layers that influence it at the end (bit `j`: layer `j`, eq. 12).
+    pub active: Vec<u32>,
+    /// Final `|f̂_i − τ_v|` per vertex (0 where undefined).
     pub residual: Vec<f64>,
     /// Newton passes run.
     pub iterations: usize,
     /// Vertices whose residual is above the tolerance at the end.
     pub unconverged: usize,
+    /// Vertex evaluations of the corrected field (work measure).
+    pub evaluations: usize,
+}
+
+/// What the repair of residual intersections changes in a projection (see [`super::repair`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Overrides<'a> {
+    /// Only these vertices move (all when `None`).
+    pub movable: Option<&'a [bool]>,
+    /// Per vertex, layers forced active ([`Composer::evaluate_forced`]).
+    pub force: Option<&'a [u32]>,
+    /// Per vertex, a shift added to the target iso-value (negative: further in).
+    pub bias: Option<&'a [f64]>,
 }
 
 /// Projects the vertices `start` of layer `i` (Sec. 6.3); `progress(iteration)` is called after
@@ -211,11 +355,11 @@ pub fn project_layer(
     composer: &Composer,
     i: usize,
     start: &[Vec3],
+    triangles: &[[u32; 3]],
     topo: &Topology,
     params: &ProjectionParams,
     progress: &(dyn Fn(usize) + Sync),
 ) -> LayerProjection {
-    let nv = start.len();
     let own = composer.layers[i].field;
     let iso: Vec<f64> = start
         .par_iter()
@@ -226,11 +370,52 @@ pub fn project_layer(
         .iter()
         .map(|e| (start[e[0] as usize] - start[e[1] as usize]).norm())
         .collect();
+    project_from(
+        composer,
+        i,
+        start,
+        &iso,
+        &rest,
+        triangles,
+        topo,
+        params,
+        &Overrides::default(),
+        progress,
+    )
+}
+
+/// The projection loop of [`project_layer`] from positions `start`, with the vertices' own
+/// iso-values `iso`, the edges' rest lengths `rest`, and the repair's overrides.
+pub fn project_from(
+    composer: &Composer,
+    i: usize,
+    start: &[Vec3],
+    iso: &[f64],
+    rest: &[f64],
+    triangles: &[[u32; 3]],
+    topo: &Topology,
+    params: &ProjectionParams,
+    over: &Overrides,
+    progress: &(dyn Fn(usize) + Sync),
+) -> LayerProjection {
+    let nv = start.len();
+    let own = composer.layers[i].field;
+    // Reference orientation of every triangle against the field normals at the start: a
+    // triangle that starts positively oriented must stay so (see `guard_flips`).
+    let mut normal: Vec<Vec3> = start
+        .par_iter()
+        .map(|p| own.field(p).map_or(Vec3::zeros(), |(_, g)| g.normalize()))
+        .collect();
+    let oriented: Vec<bool> = triangles
+        .par_iter()
+        .map(|t| orientation(t, start, &normal) > 0.0)
+        .collect();
+    let movable = |v: usize| over.movable.is_none_or(|m| m[v]) && !iso[v].is_nan();
     let mut pos = start.to_vec();
     let mut moved = vec![false; nv];
     let mut zone = vec![false; nv];
-    let mut normal = vec![Vec3::zeros(); nv];
     let mut run = vec![(i, i); nv];
+    let mut active = vec![0u32; nv];
     let mut residual = vec![0.0; nv];
     let mut evaluated = vec![false; nv];
     // Per-vertex step factor: halved when a step made the residual grow (the corrected field
@@ -238,18 +423,22 @@ pub fn project_layer(
     let mut factor = vec![1.0f64; nv];
     let mut last = vec![f64::INFINITY; nv];
     let mut iterations = 0;
+    let mut evaluations = 0;
     for it in 0..params.max_iterations.max(1) {
         iterations = it + 1;
-        let interleaved = it < params.relax_iterations;
-        let sigma = if interleaved { params.damping } else { 1.0 };
-        let step: Vec<Option<Step>> = (0..nv)
-            .into_par_iter()
-            .map(|v| {
-                if iso[v].is_nan() || (evaluated[v] && !zone[v]) {
-                    return None;
-                }
-                let c = composer.evaluate(i, &pos[v])?;
-                let r = c.value - target_iso(iso[v], c.run, i);
+        let todo: Vec<usize> = (0..nv)
+            .filter(|&v| movable(v) && (!evaluated[v] || zone[v]))
+            .collect();
+        evaluations += todo.len();
+        let step: Vec<(usize, Option<Step>)> = todo
+            .par_iter()
+            .map(|&v| {
+                let force = over.force.map_or(0, |f| f[v]);
+                let Some(c) = composer.evaluate_forced(i, &pos[v], force) else {
+                    return (v, None);
+                };
+                let bias = over.bias.map_or(0.0, |b| b[v]);
+                let r = c.value - target_iso(iso[v], c.margin, params.detail_share) - bias;
                 let f = if r.abs() > last[v] {
                     0.5 * factor[v]
                 } else {
@@ -262,32 +451,33 @@ pub fn project_layer(
                     Vec3::zeros()
                 };
                 if r.abs() <= params.tolerance || g2 < 1e-24 {
-                    return Some((pos[v], nrm, c.run, r.abs(), f));
+                    return (v, Some((pos[v], nrm, (c.run, c.active), r.abs(), f)));
                 }
-                let mut d = c.gradient * (-sigma * f.max(1.0 / 64.0) * r / g2);
+                let mut d = c.gradient * (-f.max(1.0 / 64.0) * r / g2);
                 let l = d.norm();
                 if l > params.max_step {
                     d *= params.max_step / l;
                 }
-                Some((pos[v] + d, nrm, c.run, r.abs(), f))
+                (v, Some((pos[v] + d, nrm, (c.run, c.active), r.abs(), f)))
             })
             .collect();
         let mut any = false;
-        for (v, s) in step.into_iter().enumerate() {
+        for (v, s) in step {
+            evaluated[v] = true;
             if let Some((p, nrm, rn, res, f)) = s {
                 factor[v] = f;
                 last[v] = res;
-                evaluated[v] = true;
                 if p != pos[v] {
                     any = true;
                     moved[v] = true;
                 }
                 pos[v] = p;
-                normal[v] = nrm;
-                run[v] = rn;
+                if nrm != Vec3::zeros() {
+                    normal[v] = nrm;
+                }
+                run[v] = rn.0;
+                active[v] = rn.1;
                 residual[v] = res;
-            } else if !iso[v].is_nan() {
-                evaluated[v] = true;
             }
         }
         // The zone: moved vertices, dilated.
@@ -304,51 +494,123 @@ pub fn project_layer(
         }
         zone = z;
         progress(it + 1);
-        if interleaved && params.relaxation > 0.0 {
-            pos = relax(&pos, &normal, &zone, &iso, topo, &rest, params.relaxation);
-        } else if !any {
+        let mut relaxed = 0.0f64;
+        let before = pos.clone();
+        if it < params.relax_iterations && params.relaxation > 0.0 {
+            let (p, d) = relax(
+                &pos,
+                &normal,
+                &zone,
+                &|v| movable(v) && evaluated[v],
+                topo,
+                rest,
+                params.relaxation,
+            );
+            pos = p;
+            relaxed = d;
+        }
+        if params.prevent_flips {
+            guard_flips(&before, &mut pos, &normal, triangles, &oriented);
+        }
+        if !any && relaxed <= params.tolerance {
             break;
         }
     }
     let unconverged = residual.iter().filter(|&&r| r > params.tolerance).count();
     LayerProjection {
         positions: pos,
-        iso,
+        iso: iso.to_vec(),
         moved,
         run,
+        active,
         residual,
         iterations,
         unconverged,
+        evaluations,
     }
 }
 
-/// The iso-value a vertex is driven to: its own `ε_v` away from contact (details kept), and the
-/// contact surface itself (`0`) when merged with another layer, so that neither a detail nor the
-/// field's approximation error at the vertex can push a layer through the one it touches: the
-/// offsets of eq. 13 alone then set the separation.
-pub fn target_iso(eps: f64, run: (usize, usize), i: usize) -> f64 {
-    if run == (i, i) {
-        eps
-    } else {
-        0.0
-    }
+/// `((b − a) × (c − a)) · (n_a + n_b + n_c)` of triangle `t`.
+#[inline]
+fn orientation(t: &[u32; 3], pos: &[Vec3], normal: &[Vec3]) -> f64 {
+    let [a, b, c] = t.map(|v| v as usize);
+    (pos[b] - pos[a])
+        .cross(&(pos[c] - pos[a]))
+        .dot(&(normal[a] + normal[b] + normal[c]))
 }
 
-/// One tangential relaxation step (Sec. 6.3) of the zone vertices.
+/// Undoes this pass's moves of the vertices of every triangle that was positively oriented
+/// against the field normals at the start and no longer is (the moves would fold the mesh over
+/// itself: on a surface, a mesh without inverted triangles does not overlap itself locally).
+/// Repeats until no such triangle has a vertex that moved; returns the reverted vertices.
+fn guard_flips(
+    before: &[Vec3],
+    pos: &mut [Vec3],
+    normal: &[Vec3],
+    triangles: &[[u32; 3]],
+    oriented: &[bool],
+) -> Vec<usize> {
+    let mut reverted = Vec::new();
+    loop {
+        let bad: Vec<usize> = triangles
+            .par_iter()
+            .enumerate()
+            .filter(|(k, t)| {
+                oriented[*k]
+                    && t.iter().any(|&v| pos[v as usize] != before[v as usize])
+                    && orientation(t, pos, normal) <= 0.0
+            })
+            .map(|(k, _)| k)
+            .collect();
+        if bad.is_empty() {
+            break;
+        }
+        for k in bad {
+            for &v in &triangles[k] {
+                let v = v as usize;
+                if pos[v] != before[v] {
+                    pos[v] = before[v];
+                    reverted.push(v);
+                }
+            }
+        }
+    }
+    reverted.sort_unstable();
+    reverted.dedup();
+    reverted
+}
+
+/// The iso-value a vertex is driven to: its own `ε_v` (details kept), limited to `share` of its
+/// margin to contact. Away from every other layer this is `ε_v`; in contact it is `0`, the
+/// contact surface itself; in between it varies continuously with the position (so Newton's
+/// iteration has a fixed point, unlike a switch between `ε_v` and `0`). Other layers see the
+/// smooth surface `f_i = 0`, not the details: with `share ≤ 1/2` a detail uses at most half of
+/// the gap, the other layer's detail the other half, so the meshes keep the thickness rule's
+/// distance between them.
+pub fn target_iso(eps: f64, margin: f64, share: f64) -> f64 {
+    let b = share * margin;
+    eps.clamp(-b, b)
+}
+
+/// One tangential relaxation step (Sec. 6.3) of the zone vertices: for every edge, the minimal
+/// rotation about its centre that makes it tangent to the field and the symmetric stretch that
+/// restores its rest length give target displacements of its two vertices; each vertex moves
+/// by `amount` times the tangential part of their average. Returns the new positions and the
+/// largest displacement.
 fn relax(
     pos: &[Vec3],
     normal: &[Vec3],
     zone: &[bool],
-    iso: &[f64],
+    movable: &(dyn Fn(usize) -> bool + Sync),
     topo: &Topology,
     rest: &[f64],
     amount: f64,
-) -> Vec<Vec3> {
-    (0..pos.len())
+) -> (Vec<Vec3>, f64) {
+    let out: Vec<(Vec3, f64)> = (0..pos.len())
         .into_par_iter()
         .map(|v| {
-            if !zone[v] || iso[v].is_nan() {
-                return pos[v];
+            if !zone[v] || !movable(v) {
+                return (pos[v], 0.0);
             }
             let nv = normal[v];
             let mut acc = Vec3::zeros();
@@ -379,11 +641,14 @@ fn relax(
                 count += 1;
             }
             if count == 0 {
-                return pos[v];
+                return (pos[v], 0.0);
             }
             let mut d = acc / count as f64;
             d -= nv * d.dot(&nv);
-            pos[v] + d * amount
+            d *= amount;
+            (pos[v] + d, d.norm())
         })
-        .collect()
+        .collect();
+    let moved = out.iter().map(|o| o.1).fold(0.0, f64::max);
+    (out.into_iter().map(|o| o.0).collect(), moved)
 }

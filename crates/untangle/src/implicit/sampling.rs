@@ -271,6 +271,37 @@ pub fn interior_values(mesh: &Mesh, topo: &Topology, count: usize) -> (Vec<Vec3>
     (pts, vals)
 }
 
+/// Value constraints beyond the open boundary: for every boundary sample `b` with in-surface
+/// outward normal `m`, the points `b + k·step·m` (`k = 1..=layers`) with the value `k·step`,
+/// unless another part of the surface (a sample of `surface`) is closer to the point than its own
+/// rim. Without them the co-variant field, fitted to the rim alone, extrapolates freely away from
+/// the rim and can be negative beside a garment (e.g. beyond a vest's armholes, where a T-shirt's
+/// sleeve passes), making the garment influence places it does not cover.
+pub fn exterior_values(
+    boundary: &Samples,
+    surface: &Samples,
+    step: f64,
+    layers: usize,
+) -> (Vec<Vec3>, Vec<f64>) {
+    let mut pts = Vec::new();
+    let mut vals = Vec::new();
+    for (b, m) in boundary.points.iter().zip(&boundary.normals) {
+        for k in 1..=layers {
+            let d = k as f64 * step;
+            let q = b + m * d;
+            let clear = surface
+                .points
+                .iter()
+                .all(|s| (s - q).norm_squared() >= 0.81 * d * d);
+            if clear {
+                pts.push(q);
+                vals.push(d);
+            }
+        }
+    }
+    (pts, vals)
+}
+
 /// Keeps every `k`-th sample so that at most `max` remain (deterministic thinning).
 pub fn thin(s: Samples, max: usize) -> Samples {
     if s.points.len() <= max || max == 0 {

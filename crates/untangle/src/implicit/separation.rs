@@ -75,6 +75,30 @@ impl<'a> MeshDistance<'a> {
         });
         (best <= radius).then_some(best)
     }
+
+    /// Like [`MeshDistance::distance_within`], also returning `|cos|` of the angle between
+    /// `p − q` (`q` the closest point) and the normal of the triangle `q` lies on: 1 when `q`
+    /// is inside a triangle (face-to-face contact), less when it is on an edge or corner,
+    /// e.g. at the rim of an open mesh.
+    pub fn distance_and_alignment_within(&self, p: &Vec3, radius: f64) -> Option<(f64, f64)> {
+        let q = Aabb { min: *p, max: *p }.inflated(radius);
+        let mut best = (f64::INFINITY, 0.0);
+        self.bvh.query(&q, |t| {
+            let [a, b, c] = self.triangles[t as usize].map(|v| self.positions[v as usize]);
+            let dv = p - closest_point_triangle(p, &a, &b, &c);
+            let d = dv.norm();
+            if d < best.0 {
+                let n = (b - a).cross(&(c - a));
+                let cos = if d > 0.0 && n.norm() > 0.0 {
+                    (dv.dot(&n) / (d * n.norm())).abs()
+                } else {
+                    1.0
+                };
+                best = (d, cos);
+            }
+        });
+        (best.0 <= radius).then_some(best)
+    }
 }
 
 /// Separation statistics of one layer against the layer below it.
@@ -98,6 +122,10 @@ pub struct Separation {
     pub max: f64,
     /// `|mean − expected| / expected`.
     pub relative_error: f64,
+    /// The same over the face-to-face contacts only (closest point inside a triangle of the
+    /// layer below, not on its rim or an edge: `|cos| ≥ 0.99`, see
+    /// [`MeshDistance::distance_and_alignment_within`]).
+    pub face: Option<Box<Separation>>,
 }
 
 /// Summarises distances against an expected value.
@@ -126,6 +154,7 @@ pub fn summarize(layer: usize, against: String, expected: f64, mut d: Vec<f64>) 
         } else {
             0.0
         },
+        face: None,
     }
 }
 

@@ -2,7 +2,7 @@
 //! distance fields as layers (used by the tests and the benchmark to check the operators and the
 //! projection independently of the HRBF approximation).
 
-use super::field::LayerField;
+use super::field::{FieldSample, LayerField};
 use crate::geom::Vec3;
 use crate::mesh::Mesh;
 
@@ -87,14 +87,16 @@ pub struct SphereField {
 }
 
 impl LayerField for SphereField {
-    fn field(&self, p: &Vec3) -> Option<(f64, Vec3)> {
+    fn sample(&self, p: &Vec3) -> Option<FieldSample> {
         let v = p - self.centre;
         let r = v.norm();
         let g = if r > 0.0 { v / r } else { Vec3::z() };
-        Some((r - self.radius, g))
-    }
-    fn influences(&self, _p: &Vec3) -> bool {
-        true
+        Some(FieldSample {
+            value: r - self.radius,
+            gradient: g,
+            fade: 0.0,
+            fade_gradient: Vec3::zeros(),
+        })
     }
 }
 
@@ -109,13 +111,19 @@ pub struct CylinderField {
 }
 
 impl LayerField for CylinderField {
-    fn field(&self, p: &Vec3) -> Option<(f64, Vec3)> {
+    fn sample(&self, p: &Vec3) -> Option<FieldSample> {
         let v = Vec3::new(p.x, p.y, 0.0);
         let r = v.norm();
         let g = if r > 0.0 { v / r } else { Vec3::x() };
-        Some((r - self.radius, g))
-    }
-    fn influences(&self, p: &Vec3) -> bool {
-        p.z.abs() < self.half_height
+        Some(FieldSample {
+            value: r - self.radius,
+            gradient: g,
+            fade: if p.z.abs() < self.half_height {
+                0.0
+            } else {
+                1.0
+            },
+            fade_gradient: Vec3::zeros(),
+        })
     }
 }

@@ -75,7 +75,15 @@ fn sphere_scene(radii: &[f64], w: &[f64], t: &[f64], body: bool) {
     for i in first..radii.len() {
         let m = sphere_mesh(&format!("l{i}"), &Vec3::zeros(), radii[i], 24);
         let topo = Topology::new(&m).unwrap();
-        let pr = project_layer(&composer, i, &m.positions, &topo, &params(), &|_| {});
+        let pr = project_layer(
+            &composer,
+            i,
+            &m.positions,
+            &m.triangles,
+            &topo,
+            &params(),
+            &|_| {},
+        );
         let expect = expected_radius(radii, w, t, i);
         for p in &pr.positions {
             assert!(
@@ -180,7 +188,15 @@ fn cylinders_with_limited_influence() {
         relaxation: 0.0,
         ..params()
     };
-    let pr = project_layer(&composer, 0, &m.positions, &topo, &pp, &|_| {});
+    let pr = project_layer(
+        &composer,
+        0,
+        &m.positions,
+        &m.triangles,
+        &topo,
+        &pp,
+        &|_| {},
+    );
     let expect = (0.5 + 0.45 - 0.01) / 2.0;
     for (p, q) in pr.positions.iter().zip(&m.positions) {
         let r = (p.x * p.x + p.y * p.y).sqrt();
@@ -244,8 +260,8 @@ fn hrbf_spheres_meet_the_thickness_rule() {
     assert!(v.is_clean(), "{v:?}");
 }
 
-#[test]
-fn arcsim_pants_and_tshirt_over_the_body() {
+/// The shared data folder, or `None` (with a note) when the ARCSim meshes are absent.
+fn shared_data() -> Option<std::path::PathBuf> {
     let shared = std::env::var_os("UNTANGLE_SHARED")
         .map(std::path::PathBuf::from)
         .unwrap_or_else(|| {
@@ -256,8 +272,42 @@ fn arcsim_pants_and_tshirt_over_the_body() {
             "skipping: ARCSim meshes not found under {}",
             shared.display()
         );
-        return;
+        return None;
     }
+    Some(shared)
+}
+
+#[test]
+fn arcsim_five_layers_are_intersection_free() {
+    // Body, pants, dress, T-shirt, jacket, all deeply intersecting (Table 2's 5 layers).
+    let Some(shared) = shared_data() else { return };
+    let (body, garments) =
+        crate::scenes::outfit::arcsim_outfit(&shared, crate::scenes::outfit::GARMENTS, 1).unwrap();
+    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
+    let before: Vec<Vec<Vec3>> = garments.iter().map(|m| m.positions.clone()).collect();
+    let v0 = verify(Some(&body), &refs, &before).unwrap();
+    assert!(v0.between_layers > 100 && v0.with_body > 100, "{v0:?}");
+    let inputs: Vec<GarmentInput> = garments
+        .iter()
+        .map(|m| GarmentInput {
+            mesh: m,
+            thickness: 0.01,
+            weight: 1.0,
+        })
+        .collect();
+    let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
+    let v = verify(Some(&body), &refs, &out.positions).unwrap();
+    eprintln!(
+        "arcsim 5 layers: before {v0:?}, after {v:?}, {:?}",
+        out.pair_repair
+    );
+    assert!(v.is_clean(), "{v:?}");
+    assert_eq!(out.pair_repair.remaining, 0);
+}
+
+#[test]
+fn arcsim_pants_and_tshirt_over_the_body() {
+    let Some(shared) = shared_data() else { return };
     let (body, garments) =
         crate::scenes::outfit::arcsim_outfit(&shared, &["pants3", "tshirt"], 2).unwrap();
     let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
@@ -315,4 +365,65 @@ fn same_result_for_one_and_two_threads() {
     let (a, b) = (run(1), run(2));
     assert_eq!(a.positions, b.positions);
     assert!(a.reports.iter().all(|r| r.moved > 0));
+}
+
+#[test]
+fn arcsim_weights_and_order_move_the_contact() {
+    // Fig. 10 analogue: a stiffer layer moves less and the other one more; Fig. 8 analogue:
+    // the swapped order is also untangled (the T-shirt now goes under the pants).
+    let Some(shared) = shared_data() else { return };
+    let (body, g) =
+        crate::scenes::outfit::arcsim_outfit(&shared, &["pants3", "tshirt"], 1).unwrap();
+    let params = Params::default();
+    let centre = body.positions.iter().sum::<Vec3>() / body.positions.len() as f64;
+    let bf = super::layers::build_field(&body, &centre, true, &params.fields).unwrap();
+    let fields: Vec<_> = g
+        .iter()
+        .map(|m| super::layers::build_field(m, &centre, false, &params.fields).unwrap())
+        .collect();
+    let run = |order: [usize; 2], w: [f64; 2]| {
+        let inputs: Vec<GarmentInput> = order
+            .iter()
+            .zip(w)
+            .map(|(&k, weight)| GarmentInput {
+                mesh: &g[k],
+                thickness: 0.01,
+                weight,
+            })
+            .collect();
+        let f: Vec<_> = order.iter().map(|&k| fields[k].clone()).collect();
+        let out = super::layers::untangle_with_fields(
+            Some((&body, &bf)),
+            &inputs,
+            &f,
+            &[0.0; 2],
+            0.0,
+            &params,
+            &|_| {},
+        )
+        .unwrap();
+        let refs: Vec<&crate::mesh::Mesh> = order.iter().map(|&k| &g[k]).collect();
+        let v = verify(Some(&body), &refs, &out.positions).unwrap();
+        assert!(v.is_clean(), "order {order:?} weights {w:?}: {v:?}");
+        // Mean displacement per garment, in input order (pants, T-shirt).
+        let mut disp = [0.0; 2];
+        for (slot, &k) in order.iter().enumerate() {
+            let d: f64 = out.positions[slot]
+                .iter()
+                .zip(&g[k].positions)
+                .map(|(a, b)| (a - b).norm())
+                .sum();
+            disp[k] = d / g[k].positions.len() as f64;
+        }
+        disp
+    };
+    let equal = run([0, 1], [1.0, 1.0]);
+    let stiff_pants = run([0, 1], [8.0, 1.0]);
+    let stiff_shirt = run([0, 1], [1.0, 8.0]);
+    eprintln!("mean displacement (pants, tshirt): equal {equal:?}, stiff pants {stiff_pants:?}, stiff shirt {stiff_shirt:?}");
+    assert!(stiff_pants[0] < equal[0] && stiff_pants[1] > equal[1]);
+    assert!(stiff_shirt[0] > equal[0] && stiff_shirt[1] < equal[1]);
+    let swapped = run([1, 0], [1.0, 1.0]);
+    eprintln!("swapped order: {swapped:?}");
+    assert!(swapped != equal);
 }

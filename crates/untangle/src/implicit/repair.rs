@@ -1,0 +1,669 @@
+//! Repair of the crossings that the projection leaves (an addition to Buffet et al. 2019,
+//! driven by the exact edge–triangle test of the intersection analysis).
+//!
+//! The operators guarantee nested *implicit* surfaces where the layers see each other with the
+//! same active set; the meshes can still cross where that does not hold or where a triangle cuts
+//! through a crease of the corrected surface that is sharper than the mesh (typically where a
+//! layer comes out from under the rim of an outer one). The repair fixes the layers from the
+//! inside out: the body and the garments below layer `k` are final and mutually clean; every
+//! triangle of `k` that crosses one of them (exact test, same symbolic perturbation and vertex
+//! numbering as the analysis, so "clean here" is "clean for the analysis") has its vertices
+//! pushed outwards — along the gradient of the fields of the layers it crosses — by a fraction
+//! of the thickness rule, with a decaying bump over a few rings of neighbours, until no crossing
+//! is left or the step limit is reached. Pushing `k` outwards can only create crossings with the
+//! layers above it, which are repaired afterwards. This is the sequential pairwise scheme the
+//! paper's N-ary operators replace; it is used only on the few places the operators leave.
+//!
+//! Where pushing one layer out does not free it (typically at the hem of an outer garment over
+//! a flaring skirt: the hem chases the skirt), a second, symmetric phase moves *both* triangles
+//! of every remaining crossing pair apart along the mean of the two layers' outward field
+//! normals — the outer one out, the inner one in, shared in the ratio of the stiffness weights
+//! as in the operators (Sec. 5; the body, of infinite weight, never moves) — until the analysis
+//! finds no crossing between objects (see [`separate_pairs`]).
+
+use super::field::LayerField;
+use crate::broad::Bvh;
+use crate::geom::tri_tri::{edge_crosses_triangle, triangles_intersect, triangles_may_intersect};
+use crate::geom::{Aabb, Vec3};
+use crate::mesh::{Mesh, Topology};
+use rayon::prelude::*;
+
+/// Parameters of [`repair`].
+#[derive(Clone, Debug)]
+pub struct RepairParams {
+    /// Most push steps per garment (0 turns the repair off).
+    pub steps: usize,
+    /// Push per step, relative to the thickness rule to the layer below (or to `min_step`).
+    pub step: f64,
+    /// Smallest push per step (length).
+    pub min_step: f64,
+    /// Radius of the bump a push spreads over, relative to the thickness rule (see
+    /// `bump_rings`).
+    pub bump: f64,
+    /// Most rounds of the symmetric phase ([`separate_pairs`]; 0 turns it off).
+    pub pair_rounds: usize,
+}
+
+impl Default for RepairParams {
+    fn default() -> Self {
+        RepairParams {
+            steps: 12,
+            step: 0.25,
+            min_step: 1e-4,
+            bump: 4.0,
+            pair_rounds: 200,
+        }
+    }
+}
+
+/// What the repair did to one garment.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct LayerRepair {
+    /// Triangles crossing the layers below at the start.
+    pub crossing_triangles: usize,
+    /// Push steps run.
+    pub steps: usize,
+    /// Vertices pushed at least once.
+    pub vertices: usize,
+    /// Largest total push of a vertex.
+    pub max_push: f64,
+    /// Triangles still crossing the layers below at the end of the first phase.
+    pub remaining: usize,
+}
+
+/// What the symmetric phase ([`separate_pairs`]) did.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct PairRepair {
+    /// Crossing triangle pairs between objects at its start.
+    pub crossing_pairs: usize,
+    /// Rounds run.
+    pub rounds: usize,
+    /// Crossing triangle pairs between objects at its end (0 unless the round limit was hit).
+    pub remaining: usize,
+    /// Vertices moved at least once.
+    pub vertices: usize,
+}
+
+/// One garment of the repair: its mesh, current positions, topology and thickness rule to the
+/// layers below.
+pub struct RepairLayer<'a> {
+    /// The mesh (connectivity).
+    pub mesh: &'a Mesh,
+    /// Its topology.
+    pub topo: &'a Topology,
+    /// Its field (gives the push direction to the layers above it).
+    pub field: &'a dyn LayerField,
+    /// Its stiffness weight (shares the symmetric phase's moves).
+    pub weight: f64,
+    /// Thickness rule to the layer below (`t_k/2 + t_{k-1}/2`).
+    pub separation: f64,
+}
+
+/// Triangles of `tris` (ids offset by `base` in `pos`) crossing a triangle of `others` (ids in
+/// `pos`, boxes in `bvh`): per crossing triangle, the bit set of the objects it crosses.
+fn crossing_triangles(
+    tris: &[[u32; 3]],
+    base: u32,
+    pos: &[Vec3],
+    others: &[[u32; 3]],
+    object_of: &[u32],
+    bvh: &Bvh,
+) -> Vec<(usize, u32)> {
+    tris.par_iter()
+        .enumerate()
+        .filter_map(|(k, t)| {
+            let ta = t.map(|v| v + base);
+            let pa = ta.map(|v| pos[v as usize]);
+            let bbox = Aabb::from_points(pa.iter());
+            let mut hit = 0u32;
+            bvh.query(&bbox, |u| {
+                let tb = others[u as usize];
+                let pb = tb.map(|v| pos[v as usize]);
+                if !triangles_may_intersect(&pa, &pb) {
+                    return;
+                }
+                let cross = |x: [u32; 3], y: [u32; 3]| {
+                    (0..3).any(|e| {
+                        let (i, j) = (x[e], x[(e + 1) % 3]);
+                        edge_crosses_triangle(
+                            &pos[i as usize],
+                            &pos[j as usize],
+                            &pos[y[0] as usize],
+                            &pos[y[1] as usize],
+                            &pos[y[2] as usize],
+                            [i, j, y[0], y[1], y[2]],
+                        )
+                    })
+                };
+                if cross(ta, tb) || cross(tb, ta) {
+                    hit |= 1 << object_of[u as usize];
+                }
+            });
+            (hit != 0).then_some((k, hit))
+        })
+        .collect()
+}
+
+/// Repairs `positions` (one array per garment, innermost first) against each other and the
+/// body (see the module docs). `body_field` and the garments' fields give the push directions.
+/// Vertex numbering for the exact test is that of the analysis: the garments concatenated in
+/// order, then the body.
+pub fn repair(
+    body: Option<(&Mesh, &dyn LayerField)>,
+    layers: &[RepairLayer],
+    positions: &mut [Vec<Vec3>],
+    params: &RepairParams,
+) -> (Vec<LayerRepair>, PairRepair) {
+    let ng = layers.len();
+    let mut starts = Vec::with_capacity(ng + 1);
+    let mut n = 0u32;
+    for l in layers {
+        starts.push(n);
+        n += l.mesh.positions.len() as u32;
+    }
+    let body_start = n;
+    let mut pos: Vec<Vec3> = positions.iter().flatten().copied().collect();
+    if let Some((b, _)) = body {
+        pos.extend_from_slice(&b.positions);
+    }
+    let mut reports = vec![LayerRepair::default(); ng];
+    let rings = bump_rings(layers, params);
+    for k in 0..ng {
+        if params.steps == 0 {
+            break;
+        }
+        // The layers below: body (object 0) and garments 0..k (objects 1..=k).
+        let mut others: Vec<[u32; 3]> = Vec::new();
+        let mut object_of: Vec<u32> = Vec::new();
+        if let Some((b, _)) = body {
+            others.extend(b.triangles.iter().map(|t| t.map(|v| v + body_start)));
+            object_of.resize(others.len(), 0);
+        }
+        for j in 0..k {
+            others.extend(
+                layers[j]
+                    .mesh
+                    .triangles
+                    .iter()
+                    .map(|t| t.map(|v| v + starts[j])),
+            );
+            object_of.resize(others.len(), j as u32 + 1);
+        }
+        if others.is_empty() {
+            continue;
+        }
+        let boxes: Vec<Aabb> = others
+            .iter()
+            .map(|t| Aabb::from_points(t.iter().map(|&v| &pos[v as usize])))
+            .collect();
+        let bvh = Bvh::build(&boxes);
+        let layer = &layers[k];
+        let nv = layer.mesh.positions.len();
+        let base = starts[k] as usize;
+        let step = (params.step * layer.separation).max(params.min_step);
+        let mut total = vec![0.0f64; nv];
+        let rep = &mut reports[k];
+        for it in 0..=params.steps {
+            let hits = crossing_triangles(
+                &layer.mesh.triangles,
+                starts[k],
+                &pos,
+                &others,
+                &object_of,
+                &bvh,
+            );
+            if it == 0 {
+                rep.crossing_triangles = hits.len();
+            }
+            rep.remaining = hits.len();
+            if hits.is_empty() || it == params.steps {
+                break;
+            }
+            rep.steps = it + 1;
+            // Per vertex: the objects crossed around it.
+            let mut crossed = vec![0u32; nv];
+            for &(t, bits) in &hits {
+                for &v in &layer.mesh.triangles[t] {
+                    crossed[v as usize] |= bits;
+                }
+            }
+            // Push direction: the sum of the gradients of the crossed layers' fields.
+            let dir: Vec<Vec3> = (0..nv)
+                .into_par_iter()
+                .map(|v| {
+                    if crossed[v] == 0 {
+                        return Vec3::zeros();
+                    }
+                    let p = pos[base + v];
+                    let mut d = Vec3::zeros();
+                    for o in 0..=k {
+                        if crossed[v] & (1 << o) == 0 {
+                            continue;
+                        }
+                        let f: Option<&dyn LayerField> = if o == 0 {
+                            body.map(|b| b.1)
+                        } else {
+                            Some(layers[o - 1].field)
+                        };
+                        if let Some((_, g)) = f.and_then(|f| f.field(&p)) {
+                            let l = g.norm();
+                            if l > 0.0 {
+                                d += g / l;
+                            }
+                        }
+                    }
+                    let l = d.norm();
+                    if l > 0.0 {
+                        d / l
+                    } else {
+                        // No field there: the layer's own field, else stay.
+                        layer
+                            .field
+                            .field(&p)
+                            .map_or(Vec3::zeros(), |(_, g)| g.normalize())
+                    }
+                })
+                .collect();
+            // Bump: full push at the crossing vertices, fading over the rings.
+            let mut disp = vec![Vec3::zeros(); nv];
+            let mut set = vec![false; nv];
+            let seeds: Vec<usize> = (0..nv).filter(|&v| crossed[v] != 0).collect();
+            for &v in &seeds {
+                disp[v] = dir[v] * step;
+                set[v] = true;
+            }
+            spread(layer.topo, &mut disp, &mut set, seeds, rings[k]);
+            for v in 0..nv {
+                if set[v] {
+                    pos[base + v] += disp[v];
+                    total[v] += disp[v].norm();
+                }
+            }
+        }
+        rep.vertices = total.iter().filter(|&&x| x > 0.0).count();
+        rep.max_push = total.iter().copied().fold(0.0, f64::max);
+    }
+    let pairs = separate_pairs(body, layers, &mut pos, &starts, &rings, params);
+    for (k, l) in layers.iter().enumerate() {
+        let base = starts[k] as usize;
+        positions[k].copy_from_slice(&pos[base..base + l.mesh.positions.len()]);
+    }
+    (reports, pairs)
+}
+
+/// Per layer, the rings of neighbours a push spreads over: `bump` times the thickness rule,
+/// in mean edge lengths (at least one ring, at most 64), so that the bump has the same size
+/// whatever the mesh resolution.
+fn bump_rings(layers: &[RepairLayer], params: &RepairParams) -> Vec<usize> {
+    layers
+        .iter()
+        .map(|l| {
+            let e = &l.topo.edges;
+            let p = &l.mesh.positions;
+            let mean = e
+                .iter()
+                .map(|e| (p[e[0] as usize] - p[e[1] as usize]).norm())
+                .sum::<f64>()
+                / e.len().max(1) as f64;
+            let r = params.bump * l.separation.max(params.min_step) / mean.max(1e-12);
+            (r.ceil() as usize).clamp(1, 64)
+        })
+        .collect()
+}
+
+/// Spreads the displacements of the `seeds` (already in `disp`, marked in `set`) over `rings`
+/// rings of neighbours in `topo`: a vertex first reached at ring `r` takes its parent's
+/// displacement scaled so that it is `(1 − r/(rings+1))²` of the seed's (a smooth bump).
+fn spread(topo: &Topology, disp: &mut [Vec3], set: &mut [bool], seeds: Vec<usize>, rings: usize) {
+    let fall = |r: usize| (1.0 - r as f64 / (rings + 1) as f64).powi(2);
+    let mut frontier = seeds;
+    for r in 1..=rings {
+        let ratio = fall(r) / fall(r - 1);
+        let mut next = Vec::new();
+        for &v in &frontier {
+            for &u in topo.vertex_neighbors.row(v) {
+                let u = u as usize;
+                if !set[u] {
+                    set[u] = true;
+                    disp[u] = disp[v] * ratio;
+                    next.push(u);
+                }
+            }
+        }
+        frontier = next;
+    }
+}
+
+/// Global triangle ids of the crossing pairs (`a < b`) between different objects among the
+/// triangles `only` (all when `None`) and all others.
+fn object_pairs(
+    tris: &[[u32; 3]],
+    object_of: &[u32],
+    pos: &[Vec3],
+    bvh: &Bvh,
+    only: Option<&[u32]>,
+) -> Vec<(u32, u32)> {
+    let test = |a: u32, b: u32| {
+        let (ta, tb) = (tris[a as usize], tris[b as usize]);
+        object_of[a as usize] != object_of[b as usize]
+            && triangles_may_intersect(&ta.map(|v| pos[v as usize]), &tb.map(|v| pos[v as usize]))
+            && triangles_intersect(ta, tb, pos)
+    };
+    let mut pairs: Vec<(u32, u32)> = match only {
+        None => bvh.self_pairs(|a, b, out| {
+            if test(a, b) {
+                out.push((a.min(b), a.max(b)));
+            }
+        }),
+        Some(ts) => ts
+            .par_iter()
+            .flat_map_iter(|&a| {
+                let bbox = Aabb::from_points(tris[a as usize].iter().map(|&v| &pos[v as usize]));
+                let mut out = Vec::new();
+                bvh.query(&bbox, |b| {
+                    if b != a && test(a, b) {
+                        out.push((a.min(b), a.max(b)));
+                    }
+                });
+                out
+            })
+            .collect(),
+    };
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+/// The symmetric phase of the repair (see the module docs) on the concatenated positions `pos`
+/// (garments from `starts`, then the body): every round moves both triangles of every crossing
+/// pair between two objects apart, by `step` times the layer's thickness rule along the mean
+/// outward field normal of the two layers, shared in the ratio of the weights (the outer layer
+/// moves by `w_in / (w_in + w_out)`), with a bump halved at every ring of neighbours. Only the
+/// moved triangles are tested again in the next round (a crossing needs a moved triangle to
+/// appear); the count at the end comes from a full test.
+pub fn separate_pairs(
+    body: Option<(&Mesh, &dyn LayerField)>,
+    layers: &[RepairLayer],
+    pos: &mut [Vec3],
+    starts: &[u32],
+    rings: &[usize],
+    params: &RepairParams,
+) -> PairRepair {
+    let ng = layers.len();
+    let mut rep = PairRepair::default();
+    let nvg: usize = layers.iter().map(|l| l.mesh.positions.len()).sum();
+    let mut tris: Vec<[u32; 3]> = Vec::new();
+    let mut object_of: Vec<u32> = Vec::new();
+    for (k, l) in layers.iter().enumerate() {
+        tris.extend(l.mesh.triangles.iter().map(|t| t.map(|v| v + starts[k])));
+        object_of.resize(tris.len(), k as u32);
+    }
+    if let Some((b, _)) = body {
+        tris.extend(b.triangles.iter().map(|t| t.map(|v| v + nvg as u32)));
+        object_of.resize(tris.len(), ng as u32);
+    }
+    let boxes = |pos: &[Vec3]| -> Vec<Aabb> {
+        tris.par_iter()
+            .map(|t| Aabb::from_points(t.iter().map(|&v| &pos[v as usize])))
+            .collect()
+    };
+    let mut bvh = Bvh::build(&boxes(pos));
+    let mut pairs = object_pairs(&tris, &object_of, pos, &bvh, None);
+    rep.crossing_pairs = pairs.len();
+    rep.remaining = pairs.len();
+    if params.pair_rounds == 0 || pairs.is_empty() {
+        return rep;
+    }
+    let field_of = |o: usize| -> Option<&dyn LayerField> {
+        if o == ng {
+            body.map(|b| b.1)
+        } else {
+            Some(layers[o].field)
+        }
+    };
+    let weight_of = |o: usize| {
+        if o == ng {
+            f64::INFINITY
+        } else {
+            layers[o].weight
+        }
+    };
+    let rank = |o: usize| if o == ng { -1 } else { o as i64 };
+    let mut moved_ever = vec![false; nvg];
+    for round in 0..params.pair_rounds {
+        if pairs.is_empty() {
+            break;
+        }
+        rep.rounds = round + 1;
+        // Triangles that cross a layer further in: they do not move in (the stack expands
+        // outwards from the body instead of squeezing the layers in between).
+        let mut pressed = vec![false; tris.len()];
+        for &(a, b) in &pairs {
+            let (a, b) = (a as usize, b as usize);
+            if rank(object_of[a] as usize) < rank(object_of[b] as usize) {
+                pressed[b] = true;
+            } else {
+                pressed[a] = true;
+            }
+        }
+        // Per pair: inner triangle, outer triangle, direction, shares.
+        let moves: Vec<(usize, usize, Vec3, f64, f64)> = pairs
+            .par_iter()
+            .map(|&(a, b)| {
+                let (a, b) = (a as usize, b as usize);
+                let (lo, hi) = if rank(object_of[a] as usize) < rank(object_of[b] as usize) {
+                    (a, b)
+                } else {
+                    (b, a)
+                };
+                let (olo, ohi) = (object_of[lo] as usize, object_of[hi] as usize);
+                let centre =
+                    |t: usize| tris[t].iter().map(|&v| pos[v as usize]).sum::<Vec3>() / 3.0;
+                let (clo, chi) = (centre(lo), centre(hi));
+                let c = (clo + chi) * 0.5;
+                let mut n = Vec3::zeros();
+                for o in [olo, ohi] {
+                    if let Some((_, g)) = field_of(o).and_then(|f| f.field(&c)) {
+                        let l = g.norm();
+                        if l > 0.0 {
+                            n += g / l;
+                        }
+                    }
+                }
+                if n.norm() < 1e-9 {
+                    n = chi - clo;
+                }
+                if n.norm() < 1e-12 {
+                    n = Vec3::z();
+                }
+                let n = n.normalize();
+                let (wl, wh) = (weight_of(olo), weight_of(ohi));
+                let share_hi = if wl.is_infinite() || pressed[lo] {
+                    1.0
+                } else {
+                    wl / (wl + wh)
+                };
+                (lo, hi, n, 1.0 - share_hi, share_hi)
+            })
+            .collect();
+        let mut acc = vec![Vec3::zeros(); nvg];
+        let mut count = vec![0u32; nvg];
+        for &(lo, hi, n, sl, sh) in &moves {
+            for (t, d) in [(hi, n * sh), (lo, -n * sl)] {
+                for &v in &tris[t] {
+                    let v = v as usize;
+                    if v < nvg {
+                        acc[v] += d;
+                        count[v] += 1;
+                    }
+                }
+            }
+        }
+        // Displacements, with the bump over the rings of every layer.
+        let mut disp = vec![Vec3::zeros(); nvg];
+        let mut set = vec![false; nvg];
+        for (k, l) in layers.iter().enumerate() {
+            let base = starts[k] as usize;
+            let nv = l.mesh.positions.len();
+            let step = (params.step * l.separation).max(params.min_step);
+            let seeds: Vec<usize> = (0..nv).filter(|&v| count[base + v] > 0).collect();
+            if seeds.is_empty() {
+                continue;
+            }
+            let (d, s) = (&mut disp[base..base + nv], &mut set[base..base + nv]);
+            for &v in &seeds {
+                d[v] = acc[base + v] * (step / count[base + v] as f64);
+                s[v] = true;
+            }
+            spread(l.topo, d, s, seeds, rings[k]);
+        }
+        let mut moved_tris = vec![false; tris.len()];
+        for v in 0..nvg {
+            if set[v] && disp[v] != Vec3::zeros() {
+                pos[v] += disp[v];
+                moved_ever[v] = true;
+            }
+        }
+        for (t, tri) in tris.iter().enumerate() {
+            if tri.iter().any(|&v| (v as usize) < nvg && set[v as usize]) {
+                moved_tris[t] = true;
+            }
+        }
+        let only: Vec<u32> = (0..tris.len() as u32)
+            .filter(|&t| moved_tris[t as usize])
+            .collect();
+        bvh.refit(&boxes(pos));
+        pairs = object_pairs(&tris, &object_of, pos, &bvh, Some(&only));
+    }
+    rep.vertices = moved_ever.iter().filter(|&&m| m).count();
+    let bvh = Bvh::build(&boxes(pos));
+    rep.remaining = object_pairs(&tris, &object_of, pos, &bvh, None).len();
+    rep
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::implicit::layers::verify;
+    use crate::implicit::shapes::{sphere_mesh, SphereField};
+    use proptest::prelude::*;
+
+    /// A sphere of `radius` whose vertices within `cap` radians of `axis` are pulled in to
+    /// `radius - depth` (smooth cos² profile).
+    fn dented(name: &str, radius: f64, axis: &Vec3, cap: f64, depth: f64) -> Mesh {
+        let mut m = sphere_mesh(name, &Vec3::zeros(), radius, 24);
+        let a = axis.normalize();
+        for p in &mut m.positions {
+            let ang = p.normalize().dot(&a).clamp(-1.0, 1.0).acos();
+            if ang < cap {
+                let k = (0.5 * std::f64::consts::PI * ang / cap).cos().powi(2);
+                *p *= (radius - depth * k) / radius;
+            }
+        }
+        m
+    }
+
+    /// Runs the repair on `garments` (innermost first, weights `w`) over an optional body and
+    /// returns the positions; the intersection analysis (an independent exact test) must find
+    /// the input tangled and the output clean, and the body must not move.
+    fn run(body: Option<&Mesh>, garments: &[Mesh], radii: &[f64], w: &[f64]) -> Vec<Vec<Vec3>> {
+        let refs: Vec<&Mesh> = garments.iter().collect();
+        let before: Vec<Vec<Vec3>> = garments.iter().map(|m| m.positions.clone()).collect();
+        let v0 = verify(body, &refs, &before).unwrap();
+        assert!(
+            v0.between_layers + v0.with_body > 0,
+            "starts tangled: {v0:?}"
+        );
+        let fields: Vec<SphereField> = radii
+            .iter()
+            .map(|&radius| SphereField {
+                centre: Vec3::zeros(),
+                radius,
+            })
+            .collect();
+        let body_field = body.map(|b| SphereField {
+            centre: Vec3::zeros(),
+            radius: b.positions[0].norm(),
+        });
+        let topos: Vec<Topology> = garments.iter().map(|m| Topology::new(m).unwrap()).collect();
+        let layers: Vec<RepairLayer> = (0..garments.len())
+            .map(|k| RepairLayer {
+                mesh: &garments[k],
+                topo: &topos[k],
+                field: &fields[k],
+                weight: w[k],
+                separation: 0.01,
+            })
+            .collect();
+        let mut pos = before.clone();
+        let b = body.zip(body_field.as_ref().map(|f| f as &dyn LayerField));
+        let (_, pairs) = repair(b, &layers, &mut pos, &RepairParams::default());
+        let v = verify(body, &refs, &pos).unwrap();
+        assert!(v.is_clean(), "{v:?} {pairs:?}");
+        assert_eq!(pairs.remaining, 0);
+        pos
+    }
+
+    #[test]
+    fn a_dent_through_the_layer_below_is_pushed_out() {
+        let inner = sphere_mesh("in", &Vec3::zeros(), 0.5, 24);
+        let outer = dented("out", 0.55, &Vec3::new(0.3, 0.2, 1.0), 0.6, 0.15);
+        let pos = run(
+            None,
+            &[inner.clone(), outer.clone()],
+            &[0.5, 0.55],
+            &[1.0, 1.0],
+        );
+        // Far from the dent nothing moved.
+        let axis = Vec3::new(0.3, 0.2, 1.0).normalize();
+        for (m, p) in [&inner, &outer].iter().zip(&pos) {
+            for (a, b) in m.positions.iter().zip(p) {
+                if a.normalize().dot(&axis) < -0.2 {
+                    assert_eq!(a, b);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_body_never_moves_and_the_garment_gives_way() {
+        let body = sphere_mesh("body", &Vec3::zeros(), 0.5, 20);
+        let g = dented("g", 0.53, &Vec3::x(), 0.5, 0.1);
+        let pos = run(Some(&body), std::slice::from_ref(&g), &[0.53], &[1.0]);
+        // The garment moved out where it was dented (the body is infinitely stiff).
+        let moved_out = g
+            .positions
+            .iter()
+            .zip(&pos[0])
+            .filter(|(a, b)| b.norm() > a.norm() + 1e-9)
+            .count();
+        assert!(moved_out > 0);
+    }
+
+    #[test]
+    fn a_stack_squeezed_against_the_body_expands_outwards() {
+        // Three garments all dented through each other and the body at the same place.
+        let body = sphere_mesh("body", &Vec3::zeros(), 0.5, 20);
+        let axis = Vec3::new(0.0, 1.0, 0.4);
+        let gs = [
+            dented("g0", 0.52, &axis, 0.5, 0.06),
+            dented("g1", 0.54, &axis, 0.5, 0.1),
+            dented("g2", 0.56, &axis, 0.5, 0.14),
+        ];
+        run(Some(&body), &gs, &[0.52, 0.54, 0.56], &[1.0, 2.0, 1.0]);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(6))]
+        #[test]
+        fn random_dents_are_repaired(
+            x in -1.0f64..1.0, y in -1.0f64..1.0, z in 0.2f64..1.0,
+            cap in 0.35f64..0.7, depth in 0.07f64..0.15, w in 0.2f64..5.0,
+        ) {
+            let axis = Vec3::new(x, y, z);
+            let inner = sphere_mesh("in", &Vec3::zeros(), 0.5, 24);
+            let outer = dented("out", 0.55, &axis, cap, depth);
+            run(None, &[inner, outer], &[0.5, 0.55], &[w, 1.0]);
+        }
+    }
+}
