@@ -5,6 +5,7 @@
 //!
 //! - the global intersection analysis of Wicke et al. 2006 (Sec. 4) with the red/green colouring
 //!   of Cha & Ko 2022 (Sec. 3): [`analysis`];
+//! - the uv-space update and m-CCH contact policy of Cha & Ko 2022 (Sec. 4-8): [`methods::cha_ko`];
 //! - procedural scenes with known answers: [`scenes`].
 //!
 //! It has no command-line or terminal dependencies; the `untangle` binary is built on top of it.
@@ -17,6 +18,7 @@ pub mod error;
 pub mod fsio;
 pub mod geom;
 pub mod mesh;
+pub mod methods;
 pub mod scenes;
 
 pub use error::{Error, Result};
