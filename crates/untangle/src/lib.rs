@@ -6,7 +6,9 @@
 //! - the global intersection analysis of Wicke et al. 2006 (Sec. 4) with the red/green colouring
 //!   of Cha & Ko 2022 (Sec. 3): [`analysis`];
 //! - the uv-space update and m-CCH contact policy of Cha & Ko 2022 (Sec. 4-8): [`methods::cha_ko`];
-//! - procedural scenes with known answers: [`scenes`].
+//! - procedural scenes with known answers: [`scenes`];
+//! - an implicit cloth simulator with full-proof continuous collision handling and a per-pair
+//!   contact policy (Cha & Ko 2022, Sec. 5.2): [`sim`].
 //!
 //! It has no command-line or terminal dependencies; the `untangle` binary is built on top of it.
 
@@ -20,5 +22,6 @@ pub mod geom;
 pub mod mesh;
 pub mod methods;
 pub mod scenes;
+pub mod sim;
 
 pub use error::{Error, Result};

@@ -4,6 +4,9 @@
 //! predicates, of vertex indices), so every caller sees one consistent picture of the geometry.
 
 pub mod aabb;
+pub mod ccd;
+pub mod ccd_queries;
+pub mod distance;
 pub mod predicates;
 pub mod tri_tri;
 

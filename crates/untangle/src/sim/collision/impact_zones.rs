@@ -1,0 +1,174 @@
+//! Rigid impact zones (Provot 1997; Bridson et al. 2002, Sec. 7.4; Harmon et al. 2008): the
+//! vertices of pairs that still collide are merged into zones, and each zone moves as one rigid
+//! body with its linear and angular momentum. Along straight-line trajectories a rigid velocity
+//! field maps the zone by `I + t h [omega]x`, an invertible affine map whose singular values are
+//! at least 1, so no distance inside a zone shrinks and pairs inside one zone need no further
+//! test; CCD is repeated on the rest until it finds nothing. A zone that touches a pinned vertex
+//! or an obstacle takes their (mean) velocity instead.
+
+use super::{Scene, OBSTACLE};
+use crate::geom::Vec3;
+use nalgebra::Matrix3;
+
+/// Union-find over cloth vertices with per-vertex obstacle anchors.
+pub struct Zones {
+    parent: Vec<u32>,
+    in_zone: Vec<bool>,
+    anchor_sum: Vec<Vec3>,
+    anchor_count: Vec<u32>,
+}
+
+impl Zones {
+    /// No zone yet over `n` cloth vertices.
+    pub fn new(n: usize) -> Zones {
+        Zones {
+            parent: (0..n as u32).collect(),
+            in_zone: vec![false; n],
+            anchor_sum: vec![Vec3::zeros(); n],
+            anchor_count: vec![0; n],
+        }
+    }
+
+    fn find(&self, mut x: u32) -> u32 {
+        while self.parent[x as usize] != x {
+            x = self.parent[x as usize];
+        }
+        x
+    }
+
+    fn find_mut(&mut self, x: u32) -> u32 {
+        let r = self.find(x);
+        let mut y = x;
+        while self.parent[y as usize] != r {
+            let next = self.parent[y as usize];
+            self.parent[y as usize] = r;
+            y = next;
+        }
+        r
+    }
+
+    /// Whether all four nodes are cloth vertices of one zone.
+    pub fn same_zone(&self, nodes: &[u32; 4]) -> bool {
+        if nodes.iter().any(|&n| n & OBSTACLE != 0 || !self.in_zone[n as usize]) {
+            return false;
+        }
+        let r = self.find(nodes[0]);
+        nodes[1..].iter().all(|&n| self.find(n) == r)
+    }
+
+    /// Merges the cloth nodes of a colliding pair into one zone; obstacle nodes anchor it.
+    pub fn merge(&mut self, scene: &Scene, v: &[Vec3], nodes: &[u32; 4]) {
+        let cloth: Vec<u32> = nodes.iter().copied().filter(|n| n & OBSTACLE == 0).collect();
+        let obst: Vec<u32> = nodes.iter().copied().filter(|n| n & OBSTACLE != 0).collect();
+        if cloth.is_empty() {
+            return;
+        }
+        let mut r = self.find_mut(cloth[0]);
+        for &c in &cloth {
+            self.in_zone[c as usize] = true;
+            let rc = self.find_mut(c);
+            if rc != r {
+                let (lo, hi) = (r.min(rc), r.max(rc));
+                self.parent[hi as usize] = lo;
+                r = lo;
+            }
+        }
+        if !obst.is_empty() {
+            let mean = obst
+                .iter()
+                .fold(Vec3::zeros(), |a, &o| a + scene.velocity(v, o))
+                / obst.len() as f64;
+            for &c in &cloth {
+                self.anchor_sum[c as usize] += mean;
+                self.anchor_count[c as usize] += 1;
+            }
+        }
+    }
+
+    fn groups(&self) -> Vec<Vec<u32>> {
+        let n = self.parent.len();
+        let mut index = vec![u32::MAX; n];
+        let mut groups: Vec<Vec<u32>> = Vec::new();
+        for i in 0..n as u32 {
+            if !self.in_zone[i as usize] {
+                continue;
+            }
+            let r = self.find(i) as usize;
+            if index[r] == u32::MAX {
+                index[r] = groups.len() as u32;
+                groups.push(Vec::new());
+            }
+            groups[index[r] as usize].push(i);
+        }
+        groups
+    }
+
+    /// Number of zones and of vertices in them.
+    pub fn stats(&self) -> (usize, usize) {
+        let g = self.groups();
+        (g.len(), g.iter().map(|z| z.len()).sum())
+    }
+
+    /// Replaces the velocities of every zone by its rigid motion.
+    pub fn rigidify(&self, scene: &Scene, v: &mut [Vec3]) {
+        for zone in self.groups() {
+            let (mut pinned, mut pinned_count) = (Vec3::zeros(), 0u32);
+            let (mut anchor, mut anchors) = (Vec3::zeros(), 0u32);
+            for &i in &zone {
+                let i = i as usize;
+                if scene.inv_mass[i] == 0.0 {
+                    pinned += v[i];
+                    pinned_count += 1;
+                }
+                anchor += self.anchor_sum[i];
+                anchors += self.anchor_count[i];
+            }
+            // Pinned vertices (prescribed motion) dominate obstacle anchors; either way the
+            // whole zone translates uniformly, which is rigid.
+            let a = if pinned_count > 0 {
+                Some(pinned / pinned_count as f64)
+            } else if anchors > 0 {
+                Some(anchor / anchors as f64)
+            } else {
+                None
+            };
+            if let Some(a) = a {
+                for &i in &zone {
+                    if scene.inv_mass[i as usize] > 0.0 {
+                        v[i as usize] = a;
+                    }
+                }
+                continue;
+            }
+            let mass = |i: u32| 1.0 / scene.inv_mass[i as usize];
+            let total: f64 = zone.iter().map(|&i| mass(i)).sum();
+            let c = zone
+                .iter()
+                .fold(Vec3::zeros(), |a, &i| a + scene.x0[i as usize] * mass(i))
+                / total;
+            let mut p = Vec3::zeros();
+            let mut l = Vec3::zeros();
+            let mut inertia = Matrix3::zeros();
+            for &i in &zone {
+                let (m, r) = (mass(i), scene.x0[i as usize] - c);
+                p += v[i as usize] * m;
+                l += r.cross(&v[i as usize]) * m;
+                inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * m;
+            }
+            let omega = inertia
+                .try_inverse()
+                .filter(|m| m.iter().all(|x| x.is_finite()))
+                .map(|inv| inv * l)
+                .unwrap_or_else(|| {
+                    inertia
+                        .svd(true, true)
+                        .solve(&l, 1e-12 * inertia.norm())
+                        .unwrap_or_else(|_| Vec3::zeros())
+                });
+            let vc = p / total;
+            for &i in &zone {
+                v[i as usize] = vc + omega.cross(&(scene.x0[i as usize] - c));
+            }
+        }
+    }
+}

@@ -1,0 +1,565 @@
+//! The simulator and its time step: implicit Euler (Baraff & Witkin 1998, Sec. 5) followed by
+//! the full-proof collision handling.
+//!
+//! One step with step length `h`, masses `M`, forces `f(x, v)`, stiffness `K = -df/dx`
+//! (stretch/shear and bending) and Rayleigh damping `D = alpha M + beta K` solves
+//! `(M + h D + h^2 K) dv = h (f - D v - h K v)` by filtered PCG (pinned vertices prescribed),
+//! then hands the new velocities to the collision handling, which changes them so that the
+//! straight-line motion over the step creates no intersection; finally `x += h v`.
+
+use std::time::Instant;
+
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+
+use super::collision::{self, broad::BroadPhase, CollisionSettings, Scene};
+use super::forces::stretch::{stretch_terms, StretchTerms, BLOCKS};
+use super::obstacle::{Obstacle, Obstacles};
+use super::pcg::{self, Filter, PcgSettings};
+use super::policy::ContactPolicy;
+use super::report::{Energy, StepReport, StepTiming};
+use super::rest::RestShape;
+use super::sparse::{BsrMatrix, BsrPattern};
+use crate::error::{Error, Result};
+use crate::geom::{Vec2, Vec3};
+use crate::mesh::{Garment, Topology};
+
+/// Material, integrator and collision parameters. Units: SI (metres, kilograms, seconds).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimParams {
+    /// Step length (s). Cha & Ko use 0.02.
+    pub dt: f64,
+    /// Area density (kg/m^2).
+    pub density: f64,
+    /// Stretch stiffness (N/m), Baraff & Witkin's `k` of the stretch condition per unit area.
+    pub stretch_stiffness: f64,
+    /// Shear stiffness (N/m).
+    pub shear_stiffness: f64,
+    /// Bending stiffness (N m).
+    pub bend_stiffness: f64,
+    /// Mass-proportional damping `alpha` (1/s).
+    pub damping_mass: f64,
+    /// Stiffness-proportional damping `beta` (s).
+    pub damping_stiffness: f64,
+    /// Gravity (m/s^2).
+    pub gravity: Vec3,
+    /// Cloth-cloth friction coefficient.
+    pub friction: f64,
+    /// Relative tolerance of CG.
+    pub cg_tolerance: f64,
+    /// Iteration cap of CG.
+    pub cg_max_iterations: usize,
+    /// Whether collisions are handled at all.
+    pub collisions: bool,
+    /// Fraction of a pair's thickness that CCD guarantees (proximity aims at the full thickness).
+    pub ccd_ratio: f64,
+    /// CCD impulse passes before impact zones.
+    pub max_impulse_iterations: usize,
+    /// Impact-zone passes before the fail-safe stops the cloth for the step.
+    pub max_zone_iterations: usize,
+}
+
+impl Default for SimParams {
+    fn default() -> Self {
+        SimParams {
+            dt: 0.02,
+            density: 0.15,
+            stretch_stiffness: 1000.0,
+            shear_stiffness: 100.0,
+            bend_stiffness: 5e-6,
+            damping_mass: 0.02,
+            damping_stiffness: 1e-3,
+            gravity: Vec3::new(0.0, -9.81, 0.0),
+            friction: 0.2,
+            cg_tolerance: 1e-3,
+            cg_max_iterations: 200,
+            collisions: true,
+            ccd_ratio: 0.5,
+            max_impulse_iterations: 5,
+            max_zone_iterations: 100,
+        }
+    }
+}
+
+impl SimParams {
+    /// Checks ranges; an [`Error::Parameter`] names the first bad one.
+    pub fn validate(&self) -> Result<()> {
+        let pos = |name: &str, v: f64| {
+            if v > 0.0 && v.is_finite() {
+                Ok(())
+            } else {
+                Err(Error::Parameter(format!("{name} must be positive and finite, got {v}")))
+            }
+        };
+        let nonneg = |name: &str, v: f64| {
+            if v >= 0.0 && v.is_finite() {
+                Ok(())
+            } else {
+                Err(Error::Parameter(format!("{name} must be >= 0 and finite, got {v}")))
+            }
+        };
+        pos("dt", self.dt)?;
+        pos("density", self.density)?;
+        nonneg("stretch stiffness", self.stretch_stiffness)?;
+        nonneg("shear stiffness", self.shear_stiffness)?;
+        nonneg("bend stiffness", self.bend_stiffness)?;
+        nonneg("mass damping", self.damping_mass)?;
+        nonneg("stiffness damping", self.damping_stiffness)?;
+        nonneg("friction", self.friction)?;
+        pos("cg tolerance", self.cg_tolerance)?;
+        if !(self.ccd_ratio > 0.0 && self.ccd_ratio <= 1.0) {
+            return Err(Error::Parameter(format!(
+                "ccd ratio must be in (0, 1], got {}",
+                self.ccd_ratio
+            )));
+        }
+        if !self.gravity.iter().all(|g| g.is_finite()) {
+            return Err(Error::Parameter("gravity must be finite".into()));
+        }
+        Ok(())
+    }
+}
+
+/// A cloth simulator over one garment (world vertices = nodes) plus obstacles.
+pub struct Simulator {
+    params: SimParams,
+    triangles: Vec<[u32; 3]>,
+    uv_triangles: Vec<[u32; 3]>,
+    topology: Topology,
+    uv: Vec<Vec2>,
+    rest: RestShape,
+    mass: Vec<f64>,
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    pinned: Vec<bool>,
+    obstacles: Obstacles,
+    pattern: BsrPattern,
+    /// Slot of block `(tri[i], tri[j])` for each triangle, row-major `3 * i + j`.
+    tri_slots: Vec<[u32; 9]>,
+    /// Bending Hessian per slot (a multiple of the identity), rebuilt with the rest shape.
+    bend_base: Vec<f64>,
+    broad: BroadPhase,
+    /// Velocity change of the previous step: the initial guess of CG.
+    dv_prev: Vec<Vec3>,
+    steps: u64,
+    time: f64,
+}
+
+impl Simulator {
+    /// A simulator for `garment` at its current positions, at rest, nothing pinned.
+    pub fn new(garment: &Garment, params: SimParams) -> Result<Simulator> {
+        params.validate()?;
+        let mesh = &garment.mesh;
+        let uv = garment.uv();
+        let topology = garment.topology.clone();
+        let rest = RestShape::new(&mesh.triangles, &uv.triangles, &uv.coords, &topology)
+            .map_err(|e| match e {
+                Error::Input { place, message } => {
+                    Error::input(format!("{} {}", mesh.place(), place), message)
+                }
+                other => other,
+            })?;
+        let n = mesh.positions.len();
+        let mut mass = vec![0.0; n];
+        for (t, r) in mesh.triangles.iter().zip(&rest.triangles) {
+            for &v in t {
+                mass[v as usize] += params.density * r.area / 3.0;
+            }
+        }
+        if let Some(v) = mass.iter().position(|&m| m <= 0.0) {
+            return Err(Error::input(
+                mesh.place(),
+                format!("vertex {} belongs to no triangle", v + 1),
+            ));
+        }
+        let mut pairs = Vec::new();
+        for t in &mesh.triangles {
+            pairs.extend([(t[0], t[1]), (t[1], t[2]), (t[0], t[2])]);
+        }
+        for s in &rest.bend {
+            let w = s.vertices;
+            pairs.push((w[2], w[3]));
+        }
+        let pattern = BsrPattern::from_pairs(n, pairs);
+        let tri_slots = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let mut s = [0u32; 9];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        s[3 * i + j] = pattern.slot(t[i], t[j]).expect("in pattern") as u32;
+                    }
+                }
+                s
+            })
+            .collect();
+        let mut sim = Simulator {
+            params,
+            triangles: mesh.triangles.clone(),
+            uv_triangles: uv.triangles.clone(),
+            topology,
+            uv: uv.coords.clone(),
+            rest,
+            mass,
+            x: mesh.positions.clone(),
+            v: vec![Vec3::zeros(); n],
+            pinned: vec![false; n],
+            obstacles: Obstacles::default(),
+            bend_base: Vec::new(),
+            pattern,
+            tri_slots,
+            broad: BroadPhase::default(),
+            dv_prev: vec![Vec3::zeros(); n],
+            steps: 0,
+            time: 0.0,
+        };
+        sim.rebuild_bend_base();
+        Ok(sim)
+    }
+
+    fn rebuild_bend_base(&mut self) {
+        let mut base = vec![0.0; self.pattern.nnz()];
+        let kb = self.params.bend_stiffness;
+        for s in &self.rest.bend {
+            for i in 0..4 {
+                for j in 0..4 {
+                    let slot = self
+                        .pattern
+                        .slot(s.vertices[i], s.vertices[j])
+                        .expect("bending pairs are in the pattern");
+                    base[slot] += kb * s.weights[i] * s.weights[j];
+                }
+            }
+        }
+        self.bend_base = base;
+    }
+
+    /// Replaces the rest shape by new uv coordinates (one per uv index of the garment, metres):
+    /// O(triangles + edges), meant to be called every step (Cha & Ko 2022, Sec. 5.1). Masses
+    /// stay those of the original rest shape. On error (a degenerate uv triangle, wrong count)
+    /// nothing changes.
+    pub fn set_rest_uv(&mut self, uv: &[Vec2]) -> Result<()> {
+        if uv.len() != self.uv.len() {
+            return Err(Error::Parameter(format!(
+                "set_rest_uv: {} uv coordinates given, the garment has {}",
+                uv.len(),
+                self.uv.len()
+            )));
+        }
+        let rest = RestShape::new(&self.triangles, &self.uv_triangles, uv, &self.topology)?;
+        self.uv.copy_from_slice(uv);
+        self.rest = rest;
+        self.rebuild_bend_base();
+        Ok(())
+    }
+
+    /// The current rest uv.
+    pub fn rest_uv(&self) -> &[Vec2] {
+        &self.uv
+    }
+
+    /// Parameters.
+    pub fn params(&self) -> &SimParams {
+        &self.params
+    }
+
+    /// Changes parameters that do not affect the system structure (everything except the
+    /// density, which fixed the masses). The bending stiffness takes effect immediately.
+    pub fn set_params(&mut self, params: SimParams) -> Result<()> {
+        params.validate()?;
+        let rebuild = params.bend_stiffness != self.params.bend_stiffness;
+        self.params = params;
+        if rebuild {
+            self.rebuild_bend_base();
+        }
+        Ok(())
+    }
+
+    /// World positions of the cloth (one per world vertex).
+    pub fn positions(&self) -> &[Vec3] {
+        &self.x
+    }
+
+    /// Velocities of the cloth.
+    pub fn velocities(&self) -> &[Vec3] {
+        &self.v
+    }
+
+    /// Lumped vertex masses (kg).
+    pub fn masses(&self) -> &[f64] {
+        &self.mass
+    }
+
+    /// Moves the cloth (e.g. a user edit); the caller is responsible for not creating
+    /// intersections.
+    pub fn set_positions(&mut self, x: &[Vec3]) -> Result<()> {
+        check_vectors("positions", x, self.x.len())?;
+        self.x.copy_from_slice(x);
+        Ok(())
+    }
+
+    /// Sets the velocities.
+    pub fn set_velocities(&mut self, v: &[Vec3]) -> Result<()> {
+        check_vectors("velocities", v, self.v.len())?;
+        self.v.copy_from_slice(v);
+        Ok(())
+    }
+
+    /// Pins (`true`) or frees vertex `v`: a pinned vertex keeps its position.
+    pub fn set_pinned(&mut self, v: u32, pinned: bool) -> Result<()> {
+        let n = self.x.len();
+        let p = self
+            .pinned
+            .get_mut(v as usize)
+            .ok_or_else(|| Error::Parameter(format!("pin: vertex {} out of range (0..{n})", v)))?;
+        *p = pinned;
+        if pinned {
+            self.v[v as usize] = Vec3::zeros();
+        }
+        Ok(())
+    }
+
+    /// Which vertices are pinned.
+    pub fn pinned(&self) -> &[bool] {
+        &self.pinned
+    }
+
+    /// Adds an obstacle at its given positions; returns its index.
+    pub fn add_obstacle(&mut self, obstacle: Obstacle) -> Result<usize> {
+        self.obstacles.add(obstacle)
+    }
+
+    /// Sets where obstacle `id` will be at the end of the next step (it moves linearly).
+    pub fn set_obstacle_next_positions(&mut self, id: usize, positions: &[Vec3]) -> Result<()> {
+        self.obstacles.set_next_positions(id, positions)
+    }
+
+    /// The obstacles (start positions = where they are now).
+    pub fn obstacles(&self) -> &Obstacles {
+        &self.obstacles
+    }
+
+    /// Triangles of the cloth.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// Edges of the cloth, the numbering the contact policy uses.
+    pub fn topology(&self) -> &Topology {
+        &self.topology
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Number of nonzero 3x3 blocks of the system matrix.
+    pub fn matrix_blocks(&self) -> usize {
+        self.pattern.nnz()
+    }
+
+    /// Largest relative edge stretch `|e| / |e_rest| - 1` over all triangle edges (rest lengths
+    /// from each triangle's uv).
+    pub fn max_stretch(&self) -> f64 {
+        self.triangles
+            .par_iter()
+            .zip(&self.uv_triangles)
+            .map(|(t, u)| {
+                (0..3)
+                    .map(|k| {
+                        let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+                        let (ua, ub) = (u[k] as usize, u[(k + 1) % 3] as usize);
+                        (self.x[a] - self.x[b]).norm() / (self.uv[ua] - self.uv[ub]).norm() - 1.0
+                    })
+                    .fold(f64::MIN, f64::max)
+            })
+            .reduce(|| f64::MIN, f64::max)
+    }
+
+    /// Assembles `K = -df/dx` into `k`, returns the forces and the elastic energies.
+    fn assemble(&self, k: &mut BsrMatrix) -> (Vec<Vec3>, f64, f64) {
+        let p = &self.params;
+        let terms: Vec<StretchTerms> = self
+            .triangles
+            .par_iter()
+            .zip(&self.rest.triangles)
+            .with_min_len(256)
+            .map(|(t, r)| {
+                stretch_terms(
+                    r,
+                    [&self.x[t[0] as usize], &self.x[t[1] as usize], &self.x[t[2] as usize]],
+                    p.stretch_stiffness,
+                    p.shear_stiffness,
+                )
+            })
+            .collect();
+        k.values
+            .par_iter_mut()
+            .zip(&self.bend_base)
+            .with_min_len(1024)
+            .for_each(|(b, &s)| *b = Matrix3::identity() * s);
+        let mut f: Vec<Vec3> = self.mass.iter().map(|&m| p.gravity * m).collect();
+        let mut e_stretch = 0.0;
+        for ((t, slots), term) in self.triangles.iter().zip(&self.tri_slots).zip(&terms) {
+            e_stretch += term.energy;
+            for c in 0..3 {
+                f[t[c] as usize] -= term.gradient[c];
+            }
+            for (b, &(i, j)) in BLOCKS.iter().enumerate() {
+                k.values[slots[3 * i + j] as usize] += term.hessian[b];
+                if i != j {
+                    k.values[slots[3 * j + i] as usize] += term.hessian[b].transpose();
+                }
+            }
+        }
+        let kb = p.bend_stiffness;
+        let mut e_bend = 0.0;
+        for s in &self.rest.bend {
+            let q = s.curvature(&self.x);
+            e_bend += 0.5 * kb * q.norm_squared();
+            for i in 0..4 {
+                f[s.vertices[i] as usize] -= q * (kb * s.weights[i]);
+            }
+        }
+        (f, e_stretch, e_bend)
+    }
+
+    /// Advances one step of `params.dt` with the contact `policy` (cloth-cloth pairs; obstacle
+    /// pairs default to the obstacle's thickness).
+    pub fn step(&mut self, policy: &dyn ContactPolicy) -> StepReport {
+        let t0 = Instant::now();
+        let p = self.params.clone();
+        let h = p.dt;
+        let n = self.x.len();
+        let mut k = BsrMatrix::zeros(&self.pattern);
+        let (f, e_stretch, e_bend) = self.assemble(&mut k);
+        let energy = Energy {
+            kinetic: (0..n)
+                .map(|i| 0.5 * self.mass[i] * self.v[i].norm_squared())
+                .sum(),
+            stretch: e_stretch,
+            bend: e_bend,
+            gravity: -(0..n)
+                .map(|i| self.mass[i] * p.gravity.dot(&self.x[i]))
+                .sum::<f64>(),
+        };
+        let mut kv = vec![Vec3::zeros(); n];
+        k.mul(&self.pattern, &self.v, &mut kv);
+        let c_k = h * p.damping_stiffness + h * h;
+        let c_m = 1.0 + h * p.damping_mass;
+        let b: Vec<Vec3> = (0..n)
+            .map(|i| {
+                (f[i] - self.v[i] * (p.damping_mass * self.mass[i])) * h
+                    - kv[i] * (h * (p.damping_stiffness + h))
+            })
+            .collect();
+        k.values
+            .par_iter_mut()
+            .with_min_len(1024)
+            .for_each(|blk| *blk *= c_k);
+        for i in 0..n {
+            k.values[self.pattern.diag[i] as usize] += Matrix3::identity() * (c_m * self.mass[i]);
+        }
+        let filter: Vec<Filter> = self
+            .pinned
+            .iter()
+            .map(|&pin| if pin { Filter::Fixed } else { Filter::Free })
+            .collect();
+        let z: Vec<Vec3> = (0..n)
+            .map(|i| if self.pinned[i] { -self.v[i] } else { Vec3::zeros() })
+            .collect();
+        let t1 = Instant::now();
+        let mut dv = self.dv_prev.clone();
+        let cg = pcg::solve(
+            &self.pattern,
+            &k,
+            &b,
+            &filter,
+            &z,
+            &mut dv,
+            PcgSettings {
+                tolerance: p.cg_tolerance,
+                max_iterations: p.cg_max_iterations,
+            },
+        );
+        let mut v: Vec<Vec3> = (0..n).map(|i| self.v[i] + dv[i]).collect();
+        if v.iter().any(|x| !x.iter().all(|c| c.is_finite())) {
+            // A failed solve must not poison the state: keep the old velocities.
+            v.copy_from_slice(&self.v);
+            dv.iter_mut().for_each(|d| *d = Vec3::zeros());
+        }
+        self.dv_prev = dv;
+        let t2 = Instant::now();
+        let inv_mass: Vec<f64> = (0..n)
+            .map(|i| if self.pinned[i] { 0.0 } else { 1.0 / self.mass[i] })
+            .collect();
+        let collisions = if p.collisions {
+            let scene = Scene {
+                x0: &self.x,
+                h,
+                triangles: &self.triangles,
+                edges: &self.topology.edges,
+                obstacles: &self.obstacles,
+                inv_mass: &inv_mass,
+                friction: p.friction,
+                ccd_ratio: p.ccd_ratio,
+            };
+            collision::handle(
+                &scene,
+                &mut v,
+                policy,
+                CollisionSettings {
+                    max_impulse_iterations: p.max_impulse_iterations,
+                    max_zone_iterations: p.max_zone_iterations,
+                    rebuild: self.steps % collision::broad::REBUILD_EVERY == 0,
+                },
+                &mut self.broad,
+            )
+        } else {
+            Default::default()
+        };
+        let t3 = Instant::now();
+        for i in 0..n {
+            self.x[i] += v[i] * h;
+        }
+        self.v = v;
+        self.obstacles.advance();
+        let report = StepReport {
+            step: self.steps,
+            time: self.time + h,
+            cg,
+            collisions,
+            energy,
+            max_stretch: self.max_stretch(),
+            timing: StepTiming {
+                assemble: (t1 - t0).as_secs_f64() * 1e3,
+                solve: (t2 - t1).as_secs_f64() * 1e3,
+                collisions: (t3 - t2).as_secs_f64() * 1e3,
+                total: t0.elapsed().as_secs_f64() * 1e3,
+            },
+        };
+        self.steps += 1;
+        self.time += h;
+        report
+    }
+}
+
+fn check_vectors(what: &str, x: &[Vec3], n: usize) -> Result<()> {
+    if x.len() != n {
+        return Err(Error::Parameter(format!(
+            "{what}: {} given, the cloth has {n} vertices",
+            x.len()
+        )));
+    }
+    if let Some(i) = x.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        return Err(Error::Parameter(format!("{what}: entry {i} is not finite")));
+    }
+    Ok(())
+}
