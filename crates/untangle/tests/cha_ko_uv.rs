@@ -439,7 +439,14 @@ fn star_fan_has_no_passable_target_and_falls_back_to_the_kernel() {
     assert_eq!(r.stalls[0].position, Some([0.0, 0.0, 0.0]));
     assert!(!r.uv_changed && off.is_restored());
     // Fallback on: pulled toward the kernel point nearest to a target, never inverting.
-    let mut on = ChaKo::new(&g, Params::default()).unwrap();
+    let mut on = ChaKo::new(
+        &g,
+        Params {
+            hold_steps: 0,
+            ..Params::default()
+        },
+    )
+    .unwrap();
     let r = step(&mut on, &col);
     assert!(r.no_tit_passable_fan, "the regular test still failed");
     assert_eq!(r.fallbacks.len(), 1);
@@ -461,7 +468,7 @@ fn star_fan_has_no_passable_target_and_falls_back_to_the_kernel() {
     }
     // It saturates (the kernel does not reach the target) and says so once.
     let log = &on.finesse_log()[0];
-    assert!(log.saturated);
+    assert!(log.saturated_step.is_some());
     assert_eq!(log.fallback, Some(Fallback::KernelTarget));
 }
 
@@ -489,6 +496,28 @@ fn saturation_is_reported_once_with_its_location() {
     }
     assert_eq!(saturated_reports, 1);
     assert_eq!(ck.operations().next().unwrap().level, 5);
+}
+
+#[test]
+fn saturated_operation_is_abandoned_and_another_target_tried() {
+    let g = fan(&SQUARE);
+    let params = Params {
+        max_level: 3,
+        hold_steps: 2,
+        ..Params::default()
+    };
+    let mut ck = ChaKo::new(&g, params).unwrap();
+    let col = coloring(&g, &[0], &[], &[]);
+    let reports: Vec<_> = (0..8).map(|_| step(&mut ck, &col)).collect();
+    assert_eq!(ck.finesse_log()[0].saturated_step, Some(2));
+    assert_eq!(reports[4].abandoned, 1);
+    assert_eq!(reports[4].stalls[0].reason, StallReason::Abandoned);
+    assert_eq!(ck.finesse_log()[0].end, Some(EndReason::Abandoned));
+    assert_eq!(ck.finesse_log()[0].restored_step, Some(6));
+    assert_eq!(reports[7].pulls_started, 1);
+    assert_eq!(reports[7].blocked_tabu, 1);
+    let op = ck.operations().next().unwrap();
+    assert_eq!(op.target, 2, "target 1 is barred");
 }
 
 #[test]
@@ -775,7 +804,8 @@ fn shrink_of_a_seam_edge_moves_all_copies() {
 #[test]
 fn contact_policy_follows_the_colouring() {
     use untangle::analysis::{analyze, AnalysisMesh};
-    use untangle::methods::cha_ko::{ContactRule, PairColour};
+    use untangle::methods::cha_ko::PairColour;
+    use untangle::sim::{Contact as ContactRule, ContactPolicy};
     let scene = untangle::scenes::closed(10);
     let (am2, pos) = AnalysisMesh::new(&[
         (&scene.meshes[0], untangle::analysis::ObjectKind::Cloth),

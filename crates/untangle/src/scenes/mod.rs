@@ -4,8 +4,10 @@
 //! purpose (offsets such as `0.0123`), so the expected kinds do not hinge on the tie rule; the
 //! tie rule is exercised separately.
 
+pub mod exploded;
 pub mod sheet;
 
+pub use exploded::exploded_handkerchief;
 pub use sheet::handkerchief;
 
 use crate::geom::Vec3;
@@ -23,13 +25,18 @@ pub struct Scene {
 }
 
 /// Names accepted by [`by_name`].
-pub const NAMES: &[&str] = &["closed"];
+pub const NAMES: &[&str] = &["closed", "exploded"];
 
 /// Builds a scene by name; `size` is the handkerchief resolution (cells per side, `None` for the
 /// default) and `seed` drives random scenes.
-pub fn by_name(name: &str, size: Option<usize>, _seed: u64) -> Option<Scene> {
+pub fn by_name(name: &str, size: Option<usize>, seed: u64) -> Option<Scene> {
     match name {
         "closed" => Some(closed(size.unwrap_or(16))),
+        "exploded" => Some(Scene {
+            name: "exploded".into(),
+            meshes: vec![exploded_handkerchief(size.unwrap_or(14), 0.2, 0.25, seed)],
+            expected: vec![],
+        }),
         _ => None,
     }
 }

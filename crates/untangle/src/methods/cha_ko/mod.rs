@@ -18,7 +18,8 @@
 //! exact triangle inversion test), [`operations`] (pull, shrink, target choice), [`schedule`]
 //! (Algorithm 2), [`seams`] (coordinated pulls across panels, our design of the missing
 //! Appendix A/B), [`fallback`] (when no fan passes the test, Sec. 6.1, our design of the missing
-//! Appendix C), [`policy`] (m-CCH), [`report`] (per-step reports and the Table 1 analogue).
+//! Appendix C), [`policy`] (m-CCH), [`report`] (per-step reports and the Table 1 analogue),
+//! [`resolve`] (the whole loop of Fig. 1b with the simulator).
 
 pub mod fallback;
 pub mod fan;
@@ -26,6 +27,7 @@ pub mod operations;
 pub mod params;
 pub mod policy;
 pub mod report;
+pub mod resolve;
 pub mod schedule;
 pub mod seams;
 pub mod state;
@@ -33,8 +35,9 @@ pub mod tit;
 
 pub use fallback::Fallback;
 pub use params::Params;
-pub use policy::{ContactPolicy, ContactRule, PairColour};
+pub use policy::{MchPolicy, PairColour};
 pub use report::{EndReason, FinesseRecord, FinesseStats, Stall, StallReason, UvUpdateReport};
+pub use resolve::{LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver};
 pub use seams::SeamKind;
 pub use state::{MovedCopy, Op, OpKind};
 
@@ -57,6 +60,7 @@ pub struct ChaKo {
     avg_edge: f64,
     eps_rg: f64,
     moved: Vec<u64>,
+    tabu: std::collections::BTreeMap<schedule::TabuKey, u64>,
 }
 
 impl ChaKo {
@@ -76,6 +80,7 @@ impl ChaKo {
             avg_edge,
             eps_rg,
             moved: vec![0; n],
+            tabu: Default::default(),
             params,
         })
     }
@@ -209,13 +214,14 @@ impl ChaKo {
         Ok(report)
     }
 
-    /// The m-CCH contact policy for the step analysed in `analysis` (of `am`).
+    /// The m-CCH contact policy for the step analysed in `analysis` (of `am`); it implements
+    /// [`crate::sim::ContactPolicy`].
     pub fn contact_policy<'a>(
         &self,
         am: &'a AnalysisMesh,
         analysis: &'a Analysis,
-    ) -> ContactPolicy<'a> {
-        ContactPolicy::new(am, &analysis.coloring, self.params.eps, self.eps_rg)
+    ) -> MchPolicy<'a> {
+        MchPolicy::new(am, &analysis.coloring, self.params.eps, self.eps_rg)
     }
 
     fn check_analysis_mesh(&self, am: &AnalysisMesh) -> Result<()> {

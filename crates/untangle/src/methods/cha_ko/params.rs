@@ -27,6 +27,10 @@ pub struct Params {
     /// reaches it without finishing its finesse is reported as saturated (edge shortening
     /// hindered, Sec. 5.5) and held there.
     pub max_level: u32,
+    /// Steps a saturated operation is held before it is abandoned (revoked, and its subject-
+    /// target pair or red* triangle barred for twice as many steps so that another target or
+    /// the triangle across the red edge gets a turn). 0 = hold for ever.
+    pub hold_steps: u32,
     /// Levels undone per step by a revoke (Sec. 5.1.1 scales by `1/gamma`, i.e. one level).
     pub revoke_levels_per_step: u32,
     /// Use the fallbacks (kernel target, shortened anchors) when no fan passes the triangle
@@ -43,7 +47,8 @@ impl Default for Params {
             eps: 1e-6,
             eps_rg_factor: 0.1,
             eps_rg: None,
-            max_level: 30,
+            max_level: 20,
+            hold_steps: 20,
             revoke_levels_per_step: 1,
             fallback: true,
         }
@@ -121,7 +126,7 @@ mod tests {
         }
         .validate()
         .is_err());
-        assert_eq!(p.level_cap(), 30);
+        assert_eq!(p.level_cap(), 20);
         let half = Params {
             gamma: 0.5,
             ..Params::default()

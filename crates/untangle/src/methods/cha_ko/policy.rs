@@ -16,6 +16,7 @@
 //! coloured, and such pairs always use the ordinary `epsilon`.
 
 use crate::analysis::{AnalysisMesh, Coloring, ObjectKind};
+use crate::sim::{Contact, ContactPolicy};
 
 /// Colour class of an elementary pair.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
@@ -28,15 +29,6 @@ pub enum PairColour {
     GreenGreen,
 }
 
-/// What collision handling does with a pair.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub enum ContactRule {
-    /// Ignore the pair: it may cross.
-    Skip,
-    /// Keep the primitives at least this far apart.
-    Thickness(f64),
-}
-
 /// Colour class of a pair of primitives with the given redness.
 #[inline]
 pub fn pair_colour(a_red: bool, b_red: bool) -> PairColour {
@@ -47,33 +39,36 @@ pub fn pair_colour(a_red: bool, b_red: bool) -> PairColour {
     }
 }
 
-/// The m-CCH rule for a colour class.
+/// The m-CCH rule for a colour class: red-red may cross, red-green keeps `eps_rg`, green-green
+/// keeps `eps`.
 #[inline]
-pub fn rule(colour: PairColour, eps: f64, eps_rg: f64) -> ContactRule {
+pub fn rule(colour: PairColour, eps: f64, eps_rg: f64) -> Contact {
     match colour {
-        PairColour::RedRed => ContactRule::Skip,
-        PairColour::RedGreen => ContactRule::Thickness(eps_rg),
-        PairColour::GreenGreen => ContactRule::Thickness(eps),
+        PairColour::RedRed => Contact::Skip,
+        PairColour::RedGreen => Contact::Thickness(eps_rg),
+        PairColour::GreenGreen => Contact::Thickness(eps),
     }
 }
 
-/// The per-pair contact policy of one step: the colouring of the analysed state plus the two
-/// thicknesses. Indices are those of the [`AnalysisMesh`] the colouring came from (vertices,
-/// triangles, and edges of its topology).
+/// The m-CCH contact policy of one step: the colouring of the analysed state plus the two
+/// thicknesses. It implements the simulator's [`ContactPolicy`] (cloth vertices, triangles and
+/// edges numbered as in the garment, which must be the first object of the analysis mesh;
+/// obstacle pairs keep the obstacle's thickness) and answers colour queries for any primitive
+/// of the [`AnalysisMesh`].
 #[derive(Clone, Debug)]
-pub struct ContactPolicy<'a> {
+pub struct MchPolicy<'a> {
     mesh: &'a AnalysisMesh,
     coloring: &'a Coloring,
-    /// Ordinary thickness (green-green and obstacle pairs).
+    /// Ordinary thickness (green-green pairs).
     pub eps: f64,
     /// Red-green thickness.
     pub eps_rg: f64,
 }
 
-impl<'a> ContactPolicy<'a> {
+impl<'a> MchPolicy<'a> {
     /// A policy from a colouring of `mesh`.
     pub fn new(mesh: &'a AnalysisMesh, coloring: &'a Coloring, eps: f64, eps_rg: f64) -> Self {
-        ContactPolicy {
+        MchPolicy {
             mesh,
             coloring,
             eps,
@@ -89,7 +84,8 @@ impl<'a> ContactPolicy<'a> {
             .is_some_and(|o| o.kind == ObjectKind::Cloth)
     }
 
-    /// Colour class of vertex `v` against triangle `t`.
+    /// Colour class of vertex `v` against triangle `t` (analysis-mesh numbering; a pair with an
+    /// obstacle primitive is green-green).
     pub fn vertex_triangle_colour(&self, v: u32, t: u32) -> PairColour {
         if !self.vertex_is_cloth(v) || self.mesh.kind_of_triangle(t) != ObjectKind::Cloth {
             return PairColour::GreenGreen;
@@ -100,7 +96,7 @@ impl<'a> ContactPolicy<'a> {
         )
     }
 
-    /// Colour class of edge `e0` against edge `e1` (topology edge indices).
+    /// Colour class of edge `e0` against edge `e1` (analysis-mesh topology edge indices).
     pub fn edge_edge_colour(&self, e0: u32, e1: u32) -> PairColour {
         let topo = &self.mesh.topology;
         let cloth = |e: u32| self.vertex_is_cloth(topo.edges[e as usize][0]);
@@ -113,19 +109,9 @@ impl<'a> ContactPolicy<'a> {
         )
     }
 
-    /// Rule for vertex `v` against triangle `t`.
-    pub fn vertex_triangle(&self, v: u32, t: u32) -> ContactRule {
-        rule(self.vertex_triangle_colour(v, t), self.eps, self.eps_rg)
-    }
-
-    /// Rule for edge `e0` against edge `e1` (topology edge indices).
-    pub fn edge_edge(&self, e0: u32, e1: u32) -> ContactRule {
-        rule(self.edge_edge_colour(e0, e1), self.eps, self.eps_rg)
-    }
-
     /// Rule for the edge `(a0, a1)` against the edge `(b0, b1)`, given by their vertices. An
     /// unknown edge (not in the mesh) is treated as green.
-    pub fn edge_edge_by_vertices(&self, a: [u32; 2], b: [u32; 2]) -> ContactRule {
+    pub fn edge_edge_by_vertices(&self, a: [u32; 2], b: [u32; 2]) -> Contact {
         let topo = &self.mesh.topology;
         let red = |e: [u32; 2]| {
             topo.edge_between(e[0], e[1])
@@ -141,6 +127,38 @@ impl<'a> ContactPolicy<'a> {
     }
 }
 
+impl ContactPolicy for MchPolicy<'_> {
+    fn max_thickness(&self) -> f64 {
+        self.eps.max(self.eps_rg)
+    }
+
+    /// Cloth vertex against cloth triangle (garment numbering = analysis numbering).
+    #[inline]
+    fn vertex_triangle(&self, vertex: u32, triangle: u32) -> Contact {
+        rule(
+            pair_colour(
+                self.coloring.red_vertex[vertex as usize],
+                self.coloring.red_triangle[triangle as usize],
+            ),
+            self.eps,
+            self.eps_rg,
+        )
+    }
+
+    /// Cloth edge against cloth edge (garment topology edge indices).
+    #[inline]
+    fn edge_edge(&self, edge_a: u32, edge_b: u32) -> Contact {
+        rule(
+            pair_colour(
+                self.coloring.red_edge[edge_a as usize],
+                self.coloring.red_edge[edge_b as usize],
+            ),
+            self.eps,
+            self.eps_rg,
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -151,14 +169,14 @@ mod tests {
         assert_eq!(pair_colour(true, false), PairColour::RedGreen);
         assert_eq!(pair_colour(false, true), PairColour::RedGreen);
         assert_eq!(pair_colour(false, false), PairColour::GreenGreen);
-        assert_eq!(rule(PairColour::RedRed, 1e-6, 0.1), ContactRule::Skip);
+        assert_eq!(rule(PairColour::RedRed, 1e-6, 0.1), Contact::Skip);
         assert_eq!(
             rule(PairColour::RedGreen, 1e-6, 0.1),
-            ContactRule::Thickness(0.1)
+            Contact::Thickness(0.1)
         );
         assert_eq!(
             rule(PairColour::GreenGreen, 1e-6, 0.1),
-            ContactRule::Thickness(1e-6)
+            Contact::Thickness(1e-6)
         );
     }
 }

@@ -16,6 +16,9 @@ pub enum EndReason {
     /// The colouring changed under it otherwise (the pulled vertex is no longer out-most red,
     /// its target turned red, the triangle is no longer red* with the same red edge).
     Superseded,
+    /// It saturated and was held [`super::Params::hold_steps`] steps without finishing: given
+    /// up so that another target (or the red* triangle across the red edge) can be tried.
+    Abandoned,
 }
 
 /// The life of one operation: the unit the paper's Table 1 counts.
@@ -49,8 +52,8 @@ pub struct FinesseRecord {
     pub restored_step: Option<u64>,
     /// Deepest level reached.
     pub max_level: u32,
-    /// Whether it reached its level cap (edge shortening hindered, Sec. 5.5).
-    pub saturated: bool,
+    /// Step at which it reached its level cap (edge shortening hindered, Sec. 5.5).
+    pub saturated_step: Option<u64>,
 }
 
 impl FinesseRecord {
@@ -76,6 +79,8 @@ pub enum StallReason {
     /// Triangles intersect but the colouring offers nothing to operate on (no out-most red
     /// vertex, no red* triangle) and nothing is in progress: outside the method (e.g. BLI).
     NothingToOperateOn,
+    /// A saturated operation was held too long and is given up (see [`EndReason::Abandoned`]).
+    Abandoned,
 }
 
 /// A place where the method could not proceed.
@@ -132,6 +137,10 @@ pub struct UvUpdateReport {
     pub blocked_fan: usize,
     /// Candidates skipped because a subject is held by another operation.
     pub blocked_subject: usize,
+    /// Candidates (red* triangles, pull targets) skipped because they were recently abandoned.
+    pub blocked_tabu: usize,
+    /// Operations abandoned this step.
+    pub abandoned: usize,
     /// Candidate targets / shrinks that failed the inversion test.
     pub tit_rejected: usize,
     /// Sec. 6.1: some candidates were tested, none passed the regular test, and nothing else

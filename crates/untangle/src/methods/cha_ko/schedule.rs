@@ -30,7 +30,12 @@
 //!   only; a red vertex can be left displaced when it stops being out-most or its target turns
 //!   red, which the paper's assumptions exclude but real input does not).
 //! - "Not a subject vertex" (line 12): subject of an operation still warranted by the colouring.
-//!   Such an operation that could not advance this step (level cap) is held, not revoked.
+//!   Such an operation that could not advance this step (level cap) is held, not revoked —
+//!   for at most `hold_steps` steps: a finesse that has not finished by then is hindered
+//!   (Sec. 5.5), and holding a tiny rest shape only stiffens the simulation. It is abandoned
+//!   (revoked like an ended operation) and its subject-target pair, or its red* triangle, is
+//!   barred for `2 hold_steps` steps, so another target or the red* triangle across the same red
+//!   edge is tried; abandonment is reported as a stall.
 //! - Sec. 6.1 (no TIT-passable fan): a candidate whose every proposal fails the test yields its
 //!   turn (lines 4 and 8). After both loops, such candidates whose subjects and fans are still
 //!   untouched get a fallback operation ([`super::fallback`]), so a regular operation always has
@@ -65,6 +70,7 @@ impl ChaKo {
             log,
             step,
             moved,
+            tabu,
             ..
         } = self;
         let step = *step;
@@ -85,6 +91,32 @@ impl ChaKo {
         let mut stalls: Vec<Stall> = Vec::new();
         let mut deferred: Vec<Deferred> = Vec::new();
 
+        // Operations held saturated for `hold_steps` are given up; their pair / triangle is
+        // barred for twice as long so that an alternative gets a turn.
+        tabu.retain(|_, until| *until > step);
+        if params.hold_steps > 0 {
+            for op in state.ops.values() {
+                let rec = &mut log[op.id as usize];
+                let held = rec
+                    .saturated_step
+                    .is_some_and(|s| step >= s + params.hold_steps as u64);
+                if rec.end.is_none() && held {
+                    rec.end = Some(EndReason::Abandoned);
+                    rec.end_step = Some(step);
+                    rep.abandoned += 1;
+                    tabu.insert(TabuKey::of(op), step + 2 * params.hold_steps as u64);
+                    let t = (op.triangle != NONE).then_some(op.triangle);
+                    stalls.push(stall(
+                        mesh,
+                        StallReason::Abandoned,
+                        Some(op.subjects[0]),
+                        t,
+                        positions,
+                    ));
+                }
+            }
+        }
+
         // Lines 2-5: red* triangles.
         for &t in &col.red_star {
             if t >= nt {
@@ -99,6 +131,10 @@ impl ChaKo {
             let (j, kk, i) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
             if moved[j as usize] == stamp || moved[kk as usize] == stamp {
                 rep.blocked_subject += 1;
+                continue;
+            }
+            if tabu.contains_key(&TabuKey::Shrink(t)) {
+                rep.blocked_tabu += 1;
                 continue;
             }
             let (oj, ok) = (state.owner[j as usize], state.owner[kk as usize]);
@@ -182,11 +218,19 @@ impl ChaKo {
                 }
                 continue;
             }
-            let candidates: Vec<u32> = vertex_fan(topo, x)
+            let green: Vec<u32> = vertex_fan(topo, x)
                 .iter()
                 .copied()
                 .filter(|&w| !col.red_vertex[w as usize])
                 .collect();
+            let candidates: Vec<u32> = green
+                .iter()
+                .copied()
+                .filter(|&w| !tabu.contains_key(&TabuKey::Pull(x, w)))
+                .collect();
+            if candidates.len() < green.len() {
+                rep.blocked_tabu += 1;
+            }
             if candidates.is_empty() {
                 continue;
             }
@@ -282,8 +326,8 @@ impl ChaKo {
             let rec = &mut log[op.id as usize];
             if op.level >= op.level_cap && rec.end.is_none() {
                 rep.saturated_ops += 1;
-                if !rec.saturated {
-                    rec.saturated = true;
+                if rec.saturated_step.is_none() {
+                    rec.saturated_step = Some(step);
                     let t = (op.triangle != NONE).then_some(op.triangle);
                     stalls.push(stall(
                         mesh,
@@ -314,6 +358,24 @@ impl ChaKo {
         rep.uv_changed =
             rep.pulls_started + rep.shrinks_started + continued + rep.revoked_levels > 0;
         rep
+    }
+}
+
+/// A recently abandoned operation, barred for a while.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(super) enum TabuKey {
+    /// Pull of a subject toward a target.
+    Pull(u32, u32),
+    /// Shrink of a red* triangle.
+    Shrink(u32),
+}
+
+impl TabuKey {
+    fn of(op: &Op) -> TabuKey {
+        match op.kind {
+            OpKind::Pull => TabuKey::Pull(op.subjects[0], op.target),
+            OpKind::Shrink => TabuKey::Shrink(op.triangle),
+        }
     }
 }
 
@@ -385,7 +447,7 @@ fn start(
         end: None,
         restored_step: None,
         max_level: 1,
-        saturated: false,
+        saturated_step: None,
     });
     state.start(Op {
         id,

@@ -1,0 +1,46 @@
+use untangle::analysis::{AnalysisMesh, ObjectKind};
+use untangle::geom::Vec3;
+use untangle::mesh::Garment;
+use untangle::methods::cha_ko::{ResolveParams, Resolver};
+
+fn main() {
+    let which = std::env::args().nth(1).unwrap_or("closed".into());
+    let n: usize = std::env::args()
+        .nth(2)
+        .map(|s| s.parse().unwrap())
+        .unwrap_or(12);
+    let seed: u64 = std::env::args()
+        .nth(3)
+        .map(|s| s.parse().unwrap())
+        .unwrap_or(1);
+    let g = if which == "closed" {
+        let scene = untangle::scenes::closed(n);
+        let (am2, pos) = AnalysisMesh::new(&[
+            (&scene.meshes[0], ObjectKind::Cloth),
+            (&scene.meshes[1], ObjectKind::Cloth),
+        ])
+        .unwrap();
+        Garment::new(am2.merged(&pos, &[&scene.meshes[0], &scene.meshes[1]])).unwrap()
+    } else {
+        Garment::new(untangle::scenes::exploded_handkerchief(n, 0.2, 0.25, seed)).unwrap()
+    };
+    let mut p = ResolveParams::default();
+    p.sim.gravity = Vec3::zeros();
+    p.max_steps = 400;
+    let mut r = Resolver::new(&g, p).unwrap();
+    let s = r
+        .run(|st| {
+            println!(
+                "{} pairs {} tang {} red {} rtri {} | pull +{} ~{} shrink +{} ~{} rev {} blk {}/{} act {} sat {} fb {} st {} | aq {} z {} | {:.1} {:.1} {:.1} ms",
+                st.step, st.intersecting_pairs, st.tanglements, st.red_vertices, st.red_triangles,
+                st.uv.pulls_started, st.uv.pulls_continued, st.uv.shrinks_started, st.uv.shrinks_continued,
+                st.uv.revoked_levels, st.uv.blocked_fan, st.uv.blocked_subject, st.uv.active_ops, st.uv.saturated_ops,
+                st.uv.fallbacks.len(), st.uv.stalls.len(),
+                st.administrative_quit, st.impact_zones, st.ms_analysis, st.ms_uv, st.ms_sim
+            )
+        })
+        .unwrap();
+    let mut s2 = s.clone();
+    s2.stalls.truncate(5);
+    println!("{}", serde_json::to_string(&s2).unwrap());
+}
