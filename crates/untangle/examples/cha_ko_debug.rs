@@ -20,8 +20,23 @@ fn main() {
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();
     let mut r = Resolver::new(&g, p).unwrap();
-    for _ in 0..upto {
-        r.step().unwrap();
+    for i in 0..upto {
+        let (st, sr) = r.step().unwrap();
+        let m = r
+            .simulator()
+            .positions()
+            .iter()
+            .map(|p| p.norm())
+            .fold(0.0, f64::max);
+        println!(
+            "step {i} pairs {} max|x| {m:.3e} cg {} res {:.1e} stretch {:.2} zones {} stalled {}",
+            st.intersecting_pairs,
+            sr.cg.iterations,
+            sr.cg.relative_residual,
+            sr.max_stretch,
+            sr.collisions.impact_zones,
+            sr.collisions.stalled
+        );
     }
     let pos = r.simulator().positions().to_vec();
     let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
@@ -54,6 +69,9 @@ fn main() {
             "op {:?} subj {:?} target {} tri {} level {}",
             op.kind, op.subjects, op.target, op.triangle, op.level
         );
+        if op.triangle == u32::MAX {
+            continue;
+        }
         let tri = g.mesh.triangles[op.triangle as usize];
         for k in 0..3 {
             let (a_, b_) = (tri[k], tri[(k + 1) % 3]);

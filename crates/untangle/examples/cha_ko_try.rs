@@ -27,6 +27,12 @@ fn main() {
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();
     p.max_steps = 400;
+    if let Some(l) = std::env::args().nth(4) {
+        p.cha_ko.max_level = l.parse().unwrap();
+    }
+    if let Some(h) = std::env::args().nth(5) {
+        p.cha_ko.hold_steps = h.parse().unwrap();
+    }
     let mut r = Resolver::new(&g, p).unwrap();
     let s = r
         .run(|st| {

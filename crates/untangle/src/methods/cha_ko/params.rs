@@ -47,7 +47,7 @@ impl Default for Params {
             eps: 1e-6,
             eps_rg_factor: 0.1,
             eps_rg: None,
-            max_level: 20,
+            max_level: 15,
             hold_steps: 20,
             revoke_levels_per_step: 1,
             fallback: true,
@@ -126,7 +126,7 @@ mod tests {
         }
         .validate()
         .is_err());
-        assert_eq!(p.level_cap(), 20);
+        assert_eq!(p.level_cap(), 15);
         let half = Params {
             gamma: 0.5,
             ..Params::default()
