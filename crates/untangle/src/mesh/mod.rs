@@ -4,6 +4,7 @@
 
 pub mod garment;
 pub mod obj;
+pub mod subdivide;
 pub mod topology;
 
 pub use garment::{Garment, UvSource};
