@@ -31,8 +31,12 @@ enum Command {
     Fix(commands::fix::Args),
     /// Write a procedural test scene with a known answer.
     Scene(commands::scene::Args),
+    /// Simulate cloth (implicit, with full-proof collision handling) and write the result.
+    Simulate(commands::simulate::Args),
     /// Run the main job on a built-in tangled example; results go to ./untangle-demo/.
     Demo(commands::demo::Args),
+    /// Dress a body in layered garments and untangle them implicitly (Buffet et al. 2019).
+    Layers(commands::layers::Args),
 }
 
 fn main() -> ExitCode {
@@ -62,6 +66,8 @@ fn main() -> ExitCode {
         Command::Fix(a) => commands::fix::run(a, &ctx),
         Command::Scene(a) => commands::scene::run(a, &ctx),
         Command::Demo(a) => commands::demo::run(a, &ctx),
+        Command::Layers(a) => commands::layers::run(a, &ctx),
+        Command::Simulate(a) => commands::simulate::run(a, &ctx),
     };
     match result {
         Ok(code) => ExitCode::from(code),

@@ -16,7 +16,7 @@ fn main() {
         .nth(3)
         .map(|s| s.parse().unwrap())
         .unwrap_or(20);
-    let g = Garment::new(untangle::scenes::exploded_handkerchief(n, 0.2, 0.25, seed)).unwrap();
+    let g = Garment::new(untangle::scenes::exploded::exploded(seed, n).meshes[0].clone()).unwrap();
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();
     let mut r = Resolver::new(&g, p).unwrap();

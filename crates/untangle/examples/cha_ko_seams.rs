@@ -36,7 +36,7 @@ fn main() {
         return;
     };
     for _ in 0..subdivisions {
-        mesh = subdivide::midpoint(&mesh).expect("valid");
+        mesh = subdivide::subdivide(&mesh);
     }
     let g0 = Garment::new(mesh.clone()).expect("garment");
     let avg = {

@@ -22,7 +22,7 @@ fn main() {
         .unwrap();
         Garment::new(am2.merged(&pos, &[&scene.meshes[0], &scene.meshes[1]])).unwrap()
     } else {
-        Garment::new(untangle::scenes::exploded_handkerchief(n, 0.2, 0.25, seed)).unwrap()
+        Garment::new(untangle::scenes::exploded::exploded(seed, n).meshes[0].clone()).unwrap()
     };
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();

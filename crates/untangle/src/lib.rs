@@ -19,6 +19,7 @@ pub mod broad;
 pub mod error;
 pub mod fsio;
 pub mod geom;
+pub mod implicit;
 pub mod mesh;
 pub mod methods;
 pub mod scenes;

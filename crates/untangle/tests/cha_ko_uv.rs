@@ -188,7 +188,14 @@ fn pull_after_n_steps_is_target_plus_gamma_power() {
 #[test]
 fn pull_with_gamma_08_matches_the_closed_form() {
     let g = fan(&CONCAVE);
-    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    let mut ck = ChaKo::new(
+        &g,
+        Params {
+            max_level: 30,
+            ..Params::default()
+        },
+    )
+    .unwrap();
     let col = coloring(&g, &[0], &[], &[]);
     let o = ck.original_uv()[0];
     for n in 1..=20 {

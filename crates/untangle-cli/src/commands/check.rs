@@ -34,7 +34,9 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
     }
     let mut meshes = Vec::new();
     for f in &args.files {
-        meshes.push((obj::read_obj(f)?, ObjectKind::Cloth));
+        for m in obj::read_obj(f)?.split_objects() {
+            meshes.push((m, ObjectKind::Cloth));
+        }
     }
     if let Some(b) = &args.body {
         meshes.push((obj::read_obj(b)?, ObjectKind::Obstacle));
@@ -42,7 +44,8 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
     let parts: Vec<_> = meshes.iter().map(|(m, k)| (m, *k)).collect();
     let (am, pos) = AnalysisMesh::new(&parts)?;
     let a = analysis::analyze(&am, &pos).context("intersection analysis")?;
-    let report = Report::new(&am, &a);
+    let refs: Vec<_> = meshes.iter().map(|m| &m.0).collect();
+    let report = Report::new(&am, &pos, &a).with_garment_info(&refs);
     if let Some(p) = &args.json {
         untangle::fsio::write_atomic(p, report.to_json().as_bytes())?;
     }
@@ -69,6 +72,13 @@ pub fn summary(r: &Report) -> String {
         r.triangles,
         r.vertices
     );
+    for o in &r.objects {
+        if let (Some(p), Some(sv)) = (o.panels, o.seam_vertices) {
+            if p > 1 || sv > 0 {
+                let _ = writeln!(s, "  {}: {p} panels, {sv} seam vertices", o.name);
+            }
+        }
+    }
     if r.intersecting_triangle_pairs == 0 {
         let _ = writeln!(s, "no intersections");
     } else {
@@ -105,6 +115,24 @@ pub fn summary(r: &Report) -> String {
             "red: {} vertices ({} out-most), {} triangles ({} red*)",
             r.red_vertices, r.outmost_red_vertices, r.red_triangles, r.red_star_triangles
         );
+        let blis: Vec<&analysis::report::PathReport> =
+            r.paths.iter().filter(|p| p.kind == "BLI").collect();
+        for p in blis.iter().take(5) {
+            let [x, y, z] = p.location;
+            let v = p.loop_vertices.first().map(|v| v + 1).unwrap_or(0);
+            let _ = writeln!(
+                s,
+                "  BLI on {} at vertex {v} ({x:.4}, {y:.4}, {z:.4}): outside Cha & Ko's method",
+                r.objects[p.object as usize].name
+            );
+        }
+        if blis.len() > 5 {
+            let _ = writeln!(
+                s,
+                "  ... and {} more BLI paths (see --json)",
+                blis.len() - 5
+            );
+        }
     }
     let _ = writeln!(s, "time: {:.2} ms", r.timing_ms.total);
     s

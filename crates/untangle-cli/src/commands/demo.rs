@@ -26,7 +26,7 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         .collect();
     let (am, pos) = AnalysisMesh::new(&parts)?;
     let a = analysis::analyze(&am, &pos).context("intersection analysis")?;
-    let report = Report::new(&am, &a);
+    let report = Report::new(&am, &pos, &a);
     let refs: Vec<_> = scene.meshes.iter().collect();
     let merged = am.merged(&pos, &refs);
     let colors = analysis::coloring::vertex_colors(&am, &a.coloring, &a.segments);

@@ -2,10 +2,21 @@
 //! 2006, Sec. 4, "intersections between cloth primitives"). Found once each, in parallel, with
 //! the symbolically perturbed predicates, and returned sorted so the result is identical for any
 //! thread count.
+//!
+//! Two passes share the work. Triangle pairs without a common vertex come from the BVH. Pairs that
+//! share a vertex `v` always have touching boxes, are the bulk of all candidates on cloth, and can
+//! only intersect if the fan of `v` folds over itself; a fan whose triangles all project with
+//! positive orientation along the fan's normal and wind exactly once (or, at a boundary vertex,
+//! less than once) around `v` is embedded in that projection, so none of its triangles can cross
+//! another (their projections are disjoint away from `v`, also under the symbolic perturbation).
+//! Only fans that fail this O(degree) certificate are tested pair by pair.
 
 use super::input::{AnalysisMesh, ObjectKind};
 use crate::broad::Bvh;
-use crate::geom::tri_tri::{edge_crosses_triangle, edge_may_cross_plane};
+use crate::geom::tri_tri::{
+    edge_crosses_triangle, edge_may_overlap_projected, straddling_edge_crosses_triangle,
+    triangles_may_overlap_projected, CertifiedPlane,
+};
 use crate::geom::{Aabb, Vec3};
 
 /// Edge `edge` passes through triangle `triangle`.
@@ -30,63 +41,304 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     let topo = &mesh.topology;
     let tris = &mesh.triangles;
     let has_obstacles = mesh.objects.iter().any(|o| o.kind == ObjectKind::Obstacle);
-    let mut out = bvh.self_pairs(|a, b, out: &mut Vec<Crossing>| {
-        let (ta, tb) = (tris[a as usize], tris[b as usize]);
-        let shared = ta.iter().filter(|v| tb.contains(v)).count();
-        if shared >= 2 {
-            return;
+    let planes: Vec<CertifiedPlane> = tris
+        .iter()
+        .map(|t| {
+            CertifiedPlane::new(
+                &pos[t[0] as usize],
+                &pos[t[1] as usize],
+                &pos[t[2] as usize],
+            )
+        })
+        .collect();
+    let ctx = Ctx {
+        mesh,
+        pos,
+        planes: &planes,
+    };
+    // Triangles and planes in BVH slot order: the traversal reads them from contiguous memory.
+    let order = bvh.order();
+    let slot_tris: Vec<[u32; 3]> = order.iter().map(|&t| tris[t as usize]).collect();
+    let slot_planes: Vec<CertifiedPlane> = order.iter().map(|&t| planes[t as usize]).collect();
+    let certifier = super::culling::PatchCertifier::new(tris, topo, pos, &planes, bvh);
+    let certified = std::sync::Mutex::new(Vec::new());
+    let mut out = bvh.self_slot_pairs_culled(
+        |sa, sb, out: &mut Vec<Crossing>| {
+            let (ta, tb) = (slot_tris[sa as usize], slot_tris[sb as usize]);
+            if ta.iter().any(|v| tb.contains(v)) {
+                return; // shared vertex or edge: the fan pass decides
+            }
+            let (a, b) = (order[sa as usize], order[sb as usize]);
+            if has_obstacles
+                && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
+                && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
+            {
+                return;
+            }
+            let (pa, pb) = (&slot_planes[sa as usize], &slot_planes[sb as usize]);
+            ctx.pair_with(a, b, ta, tb, pa, pb, out);
+        },
+        |node, first, len| {
+            let ok = certifier.embedded(node, first, len);
+            if ok {
+                certified
+                    .lock()
+                    .expect("no panics while held")
+                    .push((first, len));
+            }
+            ok
+        },
+    );
+    // Triangles of a certified patch: a fan entirely inside one patch is embedded too.
+    let mut patch_of = vec![u32::MAX; tris.len()];
+    for (p, &(first, len)) in certified
+        .into_inner()
+        .expect("no panics while held")
+        .iter()
+        .enumerate()
+    {
+        for &t in &order[first as usize..(first + len) as usize] {
+            patch_of[t as usize] = p as u32;
         }
-        if has_obstacles
-            && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
-            && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
-        {
-            return;
-        }
-        test_edges(a, b, ta, tb, mesh, pos, out);
-        test_edges(b, a, tb, ta, mesh, pos, out);
-    });
-    let _ = topo;
+    }
+    out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
     out.sort_unstable();
     out
 }
 
-/// Tests the edges of triangle `a` owned by `a` (the lower-indexed triangle beside the edge)
-/// against triangle `b`, so that every crossing is computed exactly once.
-#[inline]
-fn test_edges(
-    a: u32,
-    b: u32,
-    ta: [u32; 3],
-    tb: [u32; 3],
-    mesh: &AnalysisMesh,
-    pos: &[Vec3],
-    out: &mut Vec<Crossing>,
-) {
+/// Crossings between triangles that share exactly one vertex, fan by fan.
+/// Fans whose triangles all lie in one certified patch (`patch_of`) are skipped.
+fn fan_crossings(ctx: &Ctx, has_obstacles: bool, patch_of: &[u32]) -> Vec<Crossing> {
+    use rayon::prelude::*;
+    let (mesh, pos) = (ctx.mesh, ctx.pos);
     let topo = &mesh.topology;
-    let edges = topo.triangle_edges[a as usize];
-    let (pa, pb, pc) = (
-        &pos[tb[0] as usize],
-        &pos[tb[1] as usize],
-        &pos[tb[2] as usize],
-    );
-    for k in 0..3 {
-        let e = edges[k];
-        if topo.edge_triangles[e as usize][0] != a {
-            continue;
+    let tris = &mesh.triangles;
+    let fan = |mut out: Vec<Crossing>, v: u32| {
+        let fan = topo.vertex_triangles.row(v as usize);
+        let boundary = topo.boundary_vertex[v as usize];
+        let p0 = fan
+            .first()
+            .map(|&t| patch_of[t as usize])
+            .unwrap_or(u32::MAX);
+        if p0 != u32::MAX && fan.iter().all(|&t| patch_of[t as usize] == p0) {
+            return out;
         }
-        let (i, j) = (ta[k], ta[(k + 1) % 3]);
-        if tb.contains(&i) || tb.contains(&j) {
-            continue;
+        if fan.len() < 3 || fan_is_embedded(v, fan, tris, pos, ctx.planes, boundary) {
+            return out;
         }
-        let (p, q) = (&pos[i as usize], &pos[j as usize]);
-        if !edge_may_cross_plane(p, q, pa, pb, pc) {
-            continue;
+        for (i, &a) in fan.iter().enumerate() {
+            for &b in &fan[i + 1..] {
+                let (ta, tb) = (tris[a as usize], tris[b as usize]);
+                if ta.iter().filter(|x| tb.contains(x)).count() != 1 {
+                    continue;
+                }
+                if has_obstacles
+                    && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
+                    && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
+                {
+                    continue;
+                }
+                ctx.pair(a, b, &mut out);
+            }
         }
-        if edge_crosses_triangle(p, q, pa, pb, pc, [i, j, tb[0], tb[1], tb[2]]) {
-            out.push(Crossing {
-                edge: e,
-                triangle: b,
-            });
+        out
+    };
+    let n = topo.num_vertices as u32;
+    if n < PAR_VERTICES {
+        return (0..n).fold(Vec::new(), fan);
+    }
+    (0..n)
+        .into_par_iter()
+        .with_min_len(1024)
+        .fold(Vec::new, fan)
+        .reduce(Vec::new, |mut a, b| {
+            a.extend(b);
+            a
+        })
+}
+
+/// Meshes with fewer vertices run the fan pass on the calling thread (no thread start-up cost).
+const PAR_VERTICES: u32 = 8192;
+
+/// Certificate that no two triangles of the fan of `v` intersect (see the module docs). `false`
+/// means "not certified", never "intersecting".
+fn fan_is_embedded(
+    v: u32,
+    fan: &[u32],
+    tris: &[[u32; 3]],
+    pos: &[Vec3],
+    planes: &[CertifiedPlane],
+    boundary: bool,
+) -> bool {
+    let pv = pos[v as usize];
+    // Rotate each triangle so that v comes first: (v, x, y) keeps the orientation (and the plane
+    // normal, which is invariant under cyclic rotation).
+    let corners = |t: u32| {
+        let tri = tris[t as usize];
+        let k = tri.iter().position(|&w| w == v).unwrap_or(0);
+        (
+            pos[tri[(k + 1) % 3] as usize] - pv,
+            pos[tri[(k + 2) % 3] as usize] - pv,
+        )
+    };
+    let mut n = Vec3::zeros();
+    for &t in fan {
+        n += planes[t as usize].normal();
+    }
+    let nn = n.norm();
+    // Written to be false for NaN as well.
+    if nn.is_nan() || nn <= 0.0 || !nn.is_finite() {
+        return false;
+    }
+    let n = n / nn;
+    // A 2D frame of the projection plane.
+    let e1 = if n.x.abs() < 0.9 {
+        Vec3::x()
+    } else {
+        Vec3::y()
+    };
+    let e1 = (e1 - n * e1.dot(&n)).normalize();
+    let e2 = n.cross(&e1);
+    let quadrant = |w: &Vec3| {
+        let (a, b) = (w.dot(&e1), w.dot(&e2));
+        match (a >= 0.0, b >= 0.0) {
+            (true, true) => 0i32,
+            (false, true) => 1,
+            (false, false) => 2,
+            (true, false) => 3,
+        }
+    };
+    // Every projected sector turns counter-clockwise by less than pi, so the number of
+    // quadrant boundaries it sweeps is (q(y) - q(x)) mod 4; their sum is four times the winding
+    // number of the fan around v.
+    let mut steps = 0;
+    for &t in fan {
+        let c = planes[t as usize].normal();
+        let h = c.dot(&n);
+        if h.is_nan() || h <= 1e-9 * c.norm() {
+            return false;
+        }
+        let (x, y) = corners(t);
+        steps += (quadrant(&y) - quadrant(&x)).rem_euclid(4);
+    }
+    if boundary {
+        // An open fan winds less than once iff its sectors sweep fewer than four quadrant
+        // boundaries... unless it sweeps almost a full turn; then only the angle sum can tell.
+        if steps <= 2 {
+            return true;
+        }
+        let mut total = 0.0;
+        for &t in fan {
+            let (x, y) = corners(t);
+            let h = x.cross(&y).dot(&n);
+            let (xp, yp) = (x - n * x.dot(&n), y - n * y.dot(&n));
+            total += h.atan2(xp.dot(&yp));
+        }
+        total < std::f64::consts::TAU - 1e-6
+    } else {
+        steps == 4
+    }
+}
+
+/// What the pair kernel needs.
+struct Ctx<'a> {
+    mesh: &'a AnalysisMesh,
+    pos: &'a [Vec3],
+    planes: &'a [CertifiedPlane],
+}
+
+impl Ctx<'_> {
+    /// All crossings between triangles `a` and `b` (not sharing an edge), each edge tested only by
+    /// its owner (the lower-indexed triangle beside it), so every crossing is found exactly once.
+    ///
+    /// Filters, all conservative: certified plane sides reject a pair with one triangle strictly
+    /// on one side of the other's plane; pairs that look coplanar go through a 2D separating-axis
+    /// test; an edge with certified opposite sides needs only the three side tests.
+    #[inline]
+    fn pair(&self, a: u32, b: u32, out: &mut Vec<Crossing>) {
+        let tris = &self.mesh.triangles;
+        let (ta, tb) = (tris[a as usize], tris[b as usize]);
+        let (pa, pb) = (&self.planes[a as usize], &self.planes[b as usize]);
+        self.pair_with(a, b, ta, tb, pa, pb, out);
+    }
+
+    /// [`Ctx::pair`] with the triangles' corners and planes already at hand.
+    #[inline]
+    fn pair_with(
+        &self,
+        a: u32,
+        b: u32,
+        ta: [u32; 3],
+        tb: [u32; 3],
+        plane_a: &CertifiedPlane,
+        plane_b: &CertifiedPlane,
+        out: &mut Vec<Crossing>,
+    ) {
+        let p = |v: u32| &self.pos[v as usize];
+        let da = ta.map(|v| plane_b.side(p(v)));
+        if da[0] != 0 && da[0] == da[1] && da[1] == da[2] {
+            return;
+        }
+        let db = tb.map(|v| plane_a.side(p(v)));
+        if db[0] != 0 && db[0] == db[1] && db[1] == db[2] {
+            return;
+        }
+        if (da.contains(&0) || db.contains(&0))
+            && !triangles_may_overlap_projected(&ta.map(|v| *p(v)), &tb.map(|v| *p(v)))
+        {
+            return;
+        }
+        self.edges(a, b, ta, tb, da, out);
+        self.edges(b, a, tb, ta, db, out);
+    }
+
+    /// Edges of `a` (owned by `a`, not incident to `b`) against triangle `b`; `sides` are the
+    /// certified sides of `a`'s corners with respect to `b`'s plane.
+    #[inline]
+    fn edges(
+        &self,
+        a: u32,
+        b: u32,
+        ta: [u32; 3],
+        tb: [u32; 3],
+        sides: [i8; 3],
+        out: &mut Vec<Crossing>,
+    ) {
+        let topo = &self.mesh.topology;
+        let pos = self.pos;
+        let edges = topo.triangle_edges[a as usize];
+        let (pa, pb, pc) = (
+            &pos[tb[0] as usize],
+            &pos[tb[1] as usize],
+            &pos[tb[2] as usize],
+        );
+        for k in 0..3 {
+            let (sp, sq) = (sides[k], sides[(k + 1) % 3]);
+            if sp != 0 && sp == sq {
+                continue;
+            }
+            let e = edges[k];
+            if topo.edge_triangles[e as usize][0] != a {
+                continue;
+            }
+            let (i, j) = (ta[k], ta[(k + 1) % 3]);
+            if tb.contains(&i) || tb.contains(&j) {
+                continue;
+            }
+            let (p, q) = (&pos[i as usize], &pos[j as usize]);
+            let ids = [i, j, tb[0], tb[1], tb[2]];
+            let crosses = if sp != 0 && sq != 0 {
+                straddling_edge_crosses_triangle(p, q, pa, pb, pc, ids)
+            } else {
+                edge_may_overlap_projected(p, q, pa, pb, pc)
+                    && edge_crosses_triangle(p, q, pa, pb, pc, ids)
+            };
+            if crosses {
+                out.push(Crossing {
+                    edge: e,
+                    triangle: b,
+                });
+            }
         }
     }
 }

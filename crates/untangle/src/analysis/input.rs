@@ -132,6 +132,7 @@ impl AnalysisMesh {
                     name: o.name.clone(),
                     first: o.triangles.start,
                     count: o.triangles.end - o.triangles.start,
+                    is_object: true,
                 })
                 .collect(),
             source: None,

@@ -7,6 +7,7 @@
 
 pub mod coloring;
 pub mod crossings;
+pub mod culling;
 pub mod input;
 pub mod paths;
 pub mod regions;
@@ -75,8 +76,26 @@ impl Analysis {
     }
 }
 
-/// Runs the analysis of `mesh` at positions `pos`.
+/// Choices beyond the papers' defaults.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Options {
+    /// Colour the cone regions of BLI paths red as well (Wicke's heuristic, Sec. 4.2). BLI paths
+    /// are outside Cha & Ko's method; their regions are always computed and reported, and only
+    /// colour the cloth when this is set.
+    pub bli_regions_red: bool,
+}
+
+/// Runs the analysis of `mesh` at positions `pos` with default [`Options`].
 pub fn analyze(mesh: &AnalysisMesh, pos: &[Vec3]) -> Result<Analysis, Inconsistency> {
+    analyze_with(mesh, pos, &Options::default())
+}
+
+/// Runs the analysis of `mesh` at positions `pos`.
+pub fn analyze_with(
+    mesh: &AnalysisMesh,
+    pos: &[Vec3],
+    options: &Options,
+) -> Result<Analysis, Inconsistency> {
     let t0 = Instant::now();
     let boxes = crossings::triangle_boxes(mesh, pos);
     let bvh = Bvh::build(&boxes);
@@ -93,6 +112,15 @@ pub fn analyze(mesh: &AnalysisMesh, pos: &[Vec3]) -> Result<Analysis, Inconsiste
         .map(|p| {
             if mesh.objects[p.object as usize].kind != ObjectKind::Cloth {
                 return Region::None;
+            }
+            if p.kind == PathKind::BoundaryLoopInside {
+                let r = finder.bli_cone(p, &segs.segments, pos);
+                if let (Region::Inside(vs), true) = (&r, options.bli_regions_red) {
+                    for &v in vs {
+                        red_vertex[v as usize] = true;
+                    }
+                }
+                return r;
             }
             let r = finder.inside(p);
             if let Region::Inside(vs) = &r {

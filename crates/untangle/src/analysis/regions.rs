@@ -5,7 +5,9 @@
 //! mesh (a BB path joining two different boundary loops of a sleeve, say) gets no region.
 
 use super::input::AnalysisMesh;
-use super::paths::Path;
+use super::paths::{Path, PathKind};
+use super::segments::Segment;
+use crate::geom::Vec3;
 
 /// Scratch buffers reused across paths (stamps avoid clearing).
 pub struct RegionFinder<'a> {
@@ -14,6 +16,10 @@ pub struct RegionFinder<'a> {
     vertex_stamp: Vec<u32>,
     vertex_side: Vec<u8>,
     stamp: u32,
+    /// Region of interest for BLI paths: vertices stamped with `roi_stamp` are inside it.
+    roi: Vec<u32>,
+    roi_stamp: u32,
+    dist: Vec<f64>,
 }
 
 /// Outcome for one path.
@@ -36,14 +42,88 @@ impl<'a> RegionFinder<'a> {
             vertex_stamp: vec![0; mesh.num_vertices()],
             vertex_side: vec![0; mesh.num_vertices()],
             stamp: 0,
+            roi: vec![0; mesh.num_vertices()],
+            roi_stamp: 0,
+            dist: vec![f64::INFINITY; mesh.num_vertices()],
         }
+    }
+
+    /// The inside region of a BLI path by Wicke's cone heuristic (Sec. 4.2): the cloth around a
+    /// BLI path forms a cone with the loop vertex at its apex; restricted to a geodesic disc
+    /// around the loop vertex just large enough to contain the nearer end of the path, the path
+    /// splits the disc and the smaller side is inside. Distances are Dijkstra distances along
+    /// world-space edges.
+    pub fn bli_cone(&mut self, path: &Path, segments: &[Segment], pos: &[Vec3]) -> Region {
+        if path.kind != PathKind::BoundaryLoopInside || path.cut_edges.is_empty() {
+            return Region::None;
+        }
+        let Some(&apex) = path.loop_vertices.first() else {
+            return Region::None;
+        };
+        let topo = &self.mesh.topology;
+        // Each end of the path lies in the triangle of the path's first or last piece. The disc
+        // reaches the nearer end: its radius is the distance of that triangle's nearest corner,
+        // so the path leaves the disc through its end triangle and splits the disc (a larger
+        // disc would let the two sides join around the end).
+        let end_triangle = |piece: u32| {
+            let seg = &segments[(piece / 2) as usize];
+            self.mesh.triangles[seg.triangles[(piece % 2) as usize] as usize]
+        };
+        let ends = [
+            end_triangle(path.pieces[0]),
+            end_triangle(*path.pieces.last().expect("non-empty")),
+        ];
+        self.roi_stamp += 1;
+        let rs = self.roi_stamp;
+        let mut heap = std::collections::BinaryHeap::new();
+        let mut settled: Vec<u32> = Vec::new();
+        self.dist[apex as usize] = 0.0;
+        let mut touched = vec![apex];
+        heap.push(std::cmp::Reverse((OrdF(0.0), apex)));
+        let mut radius = f64::INFINITY;
+        while let Some(std::cmp::Reverse((OrdF(d), v))) = heap.pop() {
+            if d > self.dist[v as usize] || self.roi[v as usize] == rs {
+                continue;
+            }
+            if d > radius {
+                break;
+            }
+            self.roi[v as usize] = rs;
+            settled.push(v);
+            if v != apex && ends.iter().any(|tri| tri.contains(&v)) {
+                radius = radius.min(d);
+            }
+            for &w in topo.vertex_neighbors.row(v as usize) {
+                let nd = d + (pos[w as usize] - pos[v as usize]).norm();
+                if nd < self.dist[w as usize] {
+                    if self.dist[w as usize].is_infinite() {
+                        touched.push(w);
+                    }
+                    self.dist[w as usize] = nd;
+                    heap.push(std::cmp::Reverse((OrdF(nd), w)));
+                }
+            }
+        }
+        for &v in &touched {
+            self.dist[v as usize] = f64::INFINITY;
+        }
+        self.flood(path, Some(rs))
     }
 
     /// The inside region of `path` (smaller side of its cut).
     pub fn inside(&mut self, path: &Path) -> Region {
-        if !path.kind.is_partitioning() || path.cut_edges.is_empty() {
+        if !path.kind.is_partitioning() {
             return Region::None;
         }
+        self.flood(path, None)
+    }
+
+    /// Lock-step flood fill from both sides of a cut edge, optionally within a region of interest.
+    fn flood(&mut self, path: &Path, roi: Option<u32>) -> Region {
+        if path.cut_edges.is_empty() {
+            return Region::None;
+        }
+        let in_roi = |roi_arr: &[u32], v: u32| roi.is_none_or(|r| roi_arr[v as usize] == r);
         let topo = &self.mesh.topology;
         self.stamp += 1;
         let st = self.stamp;
@@ -86,7 +166,7 @@ impl<'a> RegionFinder<'a> {
                 let nbrs = topo.vertex_neighbors.row(v as usize);
                 let edges = topo.vertex_edges.row(v as usize);
                 for (&w, &e) in nbrs.iter().zip(edges) {
-                    if self.edge_stamp[e as usize] == st {
+                    if self.edge_stamp[e as usize] == st || !in_roi(&self.roi, w) {
                         continue;
                     }
                     if self.vertex_stamp[w as usize] == st {
@@ -124,6 +204,21 @@ impl<'a> RegionFinder<'a> {
                 }
             }
         }
+    }
+}
+
+/// A total order on finite distances for the Dijkstra heap.
+#[derive(Clone, Copy, PartialEq)]
+struct OrdF(f64);
+impl Eq for OrdF {}
+impl Ord for OrdF {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&o.0)
+    }
+}
+impl PartialOrd for OrdF {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
     }
 }
 

@@ -18,6 +18,10 @@ pub struct ObjectReport {
     pub vertices: [u32; 2],
     /// First triangle index and count.
     pub triangles: [u32; 2],
+    /// Sewing panels (connected components of the uv layer; 1 without uv).
+    pub panels: Option<usize>,
+    /// World vertices with several uv copies.
+    pub seam_vertices: Option<usize>,
 }
 
 /// Intersecting pairs between two objects (the same object twice: self-intersections).
@@ -56,6 +60,9 @@ pub struct PathReport {
     pub inside_vertices: Option<usize>,
     /// False for a partitioning kind that does not separate its mesh.
     pub separating: bool,
+    /// Where the path is, in world space: its first loop vertex, or the centroid of the
+    /// triangle holding its first piece.
+    pub location: [f64; 3],
 }
 
 /// One tanglement.
@@ -113,8 +120,23 @@ pub struct Report {
 }
 
 impl Report {
-    /// Builds the report.
-    pub fn new(mesh: &AnalysisMesh, a: &Analysis) -> Report {
+    /// Builds the report (`pos`: the positions the analysis ran on).
+    pub fn new(mesh: &AnalysisMesh, pos: &[crate::geom::Vec3], a: &Analysis) -> Report {
+        let location = |p: &super::Path| -> [f64; 3] {
+            let x = match p.loop_vertices.first() {
+                Some(&v) => pos[v as usize],
+                None => {
+                    let piece = p.pieces[0];
+                    let t = a.segments[(piece / 2) as usize].triangles[(piece % 2) as usize];
+                    mesh.triangles[t as usize]
+                        .iter()
+                        .map(|&v| pos[v as usize])
+                        .sum::<crate::geom::Vec3>()
+                        / 3.0
+                }
+            };
+            [x.x, x.y, x.z]
+        };
         let mut groups: BTreeMap<[u32; 2], usize> = BTreeMap::new();
         for s in &a.segments {
             let o0 = mesh.object_of_triangle[s.triangles[0] as usize];
@@ -158,6 +180,7 @@ impl Report {
                     _ => None,
                 },
                 separating: !matches!(r, Region::NotSeparating),
+                location: location(p),
             })
             .collect();
         let mut paths_by_kind = BTreeMap::new();
@@ -178,6 +201,8 @@ impl Report {
                     kind: o.kind,
                     vertices: [o.vertices.start, o.vertices.end - o.vertices.start],
                     triangles: [o.triangles.start, o.triangles.end - o.triangles.start],
+                    panels: None,
+                    seam_vertices: None,
                 })
                 .collect(),
             triangles: mesh.triangles.len(),
@@ -206,6 +231,20 @@ impl Report {
             red_star_triangles: a.coloring.red_star.len(),
             timing_ms: a.timing,
         }
+    }
+
+    /// Adds panel and seam counts of the cloth objects (`parts` in object order).
+    pub fn with_garment_info(mut self, parts: &[&crate::mesh::Mesh]) -> Report {
+        for (o, m) in self.objects.iter_mut().zip(parts) {
+            if o.kind != ObjectKind::Cloth {
+                continue;
+            }
+            if let Ok(g) = crate::mesh::Garment::new((*m).clone()) {
+                o.panels = Some(g.num_panels);
+                o.seam_vertices = Some(g.num_seam_vertices());
+            }
+        }
+        self
     }
 
     /// Pretty JSON text.

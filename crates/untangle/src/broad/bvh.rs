@@ -1,6 +1,9 @@
 //! Bounding volume hierarchy over axis-aligned boxes.
 //!
-//! Built top-down by median split on the longest centroid axis, stored in pre-order (children
+//! Built as a linear BVH: primitives are sorted along the Morton (Z-order) curve of their box
+//! centres and the sorted range is split where the highest Morton bit changes (Karras 2012), at
+//! the middle when all codes are equal. One integer sort plus a linear pass, in parallel near the
+//! root; the tree does not depend on the thread count. Nodes are stored in pre-order (children
 //! after parents), so a refit is one reverse sweep. Traversals run in parallel with `rayon::join`
 //! near the root and return results in a fixed order, so the output is identical for any thread
 //! count.
@@ -8,8 +11,10 @@
 use crate::geom::Aabb;
 
 const LEAF_SIZE: usize = 4;
+/// Smallest subtree offered to the culling predicate (smaller ones are cheaper to traverse).
+pub const CULL_MIN: u32 = 32;
 /// Subtrees with fewer primitives than this are traversed sequentially.
-const PAR_CUTOFF: u32 = 2048;
+const PAR_CUTOFF: u32 = 256;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -22,6 +27,8 @@ struct Node {
     right: u32,
     /// Number of primitives below.
     size: u32,
+    /// First slot below (the subtree holds slots `first..first + size`).
+    first: u32,
 }
 
 impl Node {
@@ -45,19 +52,52 @@ impl Bvh {
     /// Builds the hierarchy over `aabbs` (primitive `i` has box `aabbs[i]`).
     pub fn build(aabbs: &[Aabb]) -> Bvh {
         let n = aabbs.len();
-        let mut order: Vec<u32> = (0..n as u32).collect();
-        let centers: Vec<[f64; 3]> = aabbs
+        if n == 0 {
+            return Bvh::default();
+        }
+        let bounds = aabbs.iter().fold(Aabb::EMPTY, |a, b| {
+            let c = b.center();
+            let mut a = a;
+            a.grow(&c);
+            a
+        });
+        let ext = bounds.extent();
+        let scale = |e: f64| {
+            if e > 0.0 {
+                ((1u64 << 21) - 1) as f64 / e
+            } else {
+                0.0
+            }
+        };
+        let (sx, sy, sz) = (scale(ext.x), scale(ext.y), scale(ext.z));
+        let mut keyed: Vec<(u64, u32)> = aabbs
             .iter()
-            .map(|b| {
-                let c = b.center();
-                [c.x, c.y, c.z]
+            .enumerate()
+            .map(|(i, b)| {
+                let c = b.center() - bounds.min;
+                let q = |v: f64, s: f64| ((v * s) as u64).min((1 << 21) - 1);
+                (morton3(q(c.x, sx), q(c.y, sy), q(c.z, sz)), i as u32)
             })
             .collect();
-        let mut nodes = Vec::with_capacity(2 * n / LEAF_SIZE + 2);
-        if n > 0 {
-            build_rec(&mut nodes, &mut order, 0, &centers, aabbs);
-        }
-        let slot_aabbs = order.iter().map(|&i| aabbs[i as usize]).collect();
+        keyed.sort_unstable();
+        let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
+        let order: Vec<u32> = keyed.iter().map(|k| k.1).collect();
+        let slot_aabbs: Vec<Aabb> = order.iter().map(|&i| aabbs[i as usize]).collect();
+        // Sizes are known up front (leaves hold up to LEAF_SIZE), so subtrees are built into
+        // disjoint parts of the node array, possibly in parallel, with a fixed layout.
+        let count = node_count(&codes);
+        let mut nodes = vec![
+            Node {
+                aabb: Aabb::EMPTY,
+                start: 0,
+                count: 0,
+                right: 0,
+                size: 0,
+                first: 0,
+            };
+            count
+        ];
+        build_range(&mut nodes, 0, &codes, &slot_aabbs, 0);
         Bvh {
             nodes,
             order,
@@ -113,28 +153,95 @@ impl Bvh {
         T: Send,
         F: Fn(u32, u32, &mut Vec<T>) + Sync,
     {
+        let order = &self.order;
+        self.self_slot_pairs(|a, b, out| visit(order[a as usize], order[b as usize], out))
+    }
+
+    /// Like [`Bvh::self_pairs`], but passes *slot* indices (positions in [`Bvh::order`]), so a
+    /// caller can keep per-primitive data in slot order and read it from contiguous memory.
+    pub fn self_slot_pairs<T, F>(&self, visit: F) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+    {
+        self.self_slot_pairs_culled(visit, |_, _, _| false)
+    }
+
+    /// Like [`Bvh::self_slot_pairs`], skipping the pairs *within* every subtree (of at least
+    /// [`CULL_MIN`] primitives) for which `cull(node, first_slot, len)` certifies that no two of
+    /// its primitives need visiting. Pairs between a culled subtree and the rest are still
+    /// visited. `node` indexes the values of [`Bvh::fold_up`].
+    pub fn self_slot_pairs_culled<T, F, C>(&self, visit: F, cull: C) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+        C: Fn(usize, u32, u32) -> bool + Sync,
+    {
         if self.nodes.is_empty() {
             return Vec::new();
         }
         let mut out = Vec::new();
-        self.self_rec(0, &visit, &mut out);
+        self.self_rec(0, &visit, &cull, &mut out);
         out
     }
 
-    fn self_rec<T: Send, F: Fn(u32, u32, &mut Vec<T>) + Sync>(
+    /// A value per node computed bottom-up: `leaf(slots)` for a leaf's primitive slots,
+    /// `merge(left, right)` for an inner node. Indexed like the `node` argument of the culling
+    /// predicate of [`Bvh::self_slot_pairs_culled`].
+    pub fn fold_up<V: Clone>(
+        &self,
+        leaf: impl Fn(std::ops::Range<u32>) -> V,
+        merge: impl Fn(&V, &V) -> V,
+    ) -> Vec<V> {
+        let mut vals: Vec<Option<V>> = vec![None; self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let n = self.nodes[i];
+            let v = if n.is_leaf() {
+                leaf(n.start..n.start + n.count)
+            } else {
+                let (l, r) = (
+                    vals[n.start as usize].as_ref(),
+                    vals[n.right as usize].as_ref(),
+                );
+                merge(
+                    l.expect("children after parents"),
+                    r.expect("children after parents"),
+                )
+            };
+            vals[i] = Some(v);
+        }
+        vals.into_iter()
+            .map(|v| v.expect("every node folded"))
+            .collect()
+    }
+
+    /// The primitive stored in each slot (slots are leaf order, close primitives are close).
+    pub fn order(&self) -> &[u32] {
+        &self.order
+    }
+
+    fn self_rec<
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+        C: Fn(usize, u32, u32) -> bool + Sync,
+    >(
         &self,
         a: usize,
         visit: &F,
+        cull: &C,
         out: &mut Vec<T>,
     ) {
         let n = self.nodes[a];
+        if n.size >= CULL_MIN && cull(a, n.first, n.size) {
+            return;
+        }
         if n.is_leaf() {
             let s = n.start as usize;
             let e = s + n.count as usize;
             for i in s..e {
                 for j in i + 1..e {
                     if self.slot_aabbs[i].overlaps(&self.slot_aabbs[j]) {
-                        visit(self.order[i], self.order[j], out);
+                        visit(i as u32, j as u32, out);
                     }
                 }
             }
@@ -147,19 +254,19 @@ impl Bvh {
                     rayon::join(
                         || {
                             let mut o = Vec::new();
-                            self.self_rec(l, visit, &mut o);
+                            self.self_rec(l, visit, cull, &mut o);
                             o
                         },
                         || {
                             let mut o = Vec::new();
-                            self.self_rec(r, visit, &mut o);
+                            self.self_rec(r, visit, cull, &mut o);
                             o
                         },
                     )
                 },
                 || {
                     let mut o = Vec::new();
-                    self.cross_rec(self, l, r, visit, &mut o);
+                    self.cross_rec_slots(self, l, r, visit, &mut o);
                     o
                 },
             );
@@ -171,9 +278,9 @@ impl Bvh {
                 out.extend(o1);
             }
         } else {
-            self.self_rec(l, visit, out);
-            self.self_rec(r, visit, out);
-            self.cross_rec(self, l, r, visit, out);
+            self.self_rec(l, visit, cull, out);
+            self.self_rec(r, visit, cull, out);
+            self.cross_rec_slots(self, l, r, visit, out);
         }
     }
 
@@ -187,12 +294,15 @@ impl Bvh {
         if self.nodes.is_empty() || other.nodes.is_empty() {
             return Vec::new();
         }
+        let (oa, ob) = (&self.order, &other.order);
+        let visit = |i: u32, j: u32, out: &mut Vec<T>| visit(oa[i as usize], ob[j as usize], out);
         let mut out = Vec::new();
-        self.cross_rec(other, 0, 0, &visit, &mut out);
+        self.cross_rec_slots(other, 0, 0, &visit, &mut out);
         out
     }
 
-    fn cross_rec<T: Send, F: Fn(u32, u32, &mut Vec<T>) + Sync>(
+    /// Cross traversal reporting slot indices of `self` and `other`.
+    fn cross_rec_slots<T: Send, F: Fn(u32, u32, &mut Vec<T>) + Sync>(
         &self,
         other: &Bvh,
         a: usize,
@@ -209,7 +319,7 @@ impl Bvh {
                 let bi = &self.slot_aabbs[i as usize];
                 for j in nb.start..nb.start + nb.count {
                     if bi.overlaps(&other.slot_aabbs[j as usize]) {
-                        visit(self.order[i as usize], other.order[j as usize], out);
+                        visit(i, j, out);
                     }
                 }
             }
@@ -224,20 +334,20 @@ impl Bvh {
                 let (mut o1, o2) = rayon::join(
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec(other, l, b, visit, &mut o);
+                        self.cross_rec_slots(other, l, b, visit, &mut o);
                         o
                     },
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec(other, r, b, visit, &mut o);
+                        self.cross_rec_slots(other, r, b, visit, &mut o);
                         o
                     },
                 );
                 o1.extend(o2);
                 out.extend(o1);
             } else {
-                self.cross_rec(other, l, b, visit, out);
-                self.cross_rec(other, r, b, visit, out);
+                self.cross_rec_slots(other, l, b, visit, out);
+                self.cross_rec_slots(other, r, b, visit, out);
             }
         } else {
             let (l, r) = (nb.start as usize, nb.right as usize);
@@ -245,20 +355,20 @@ impl Bvh {
                 let (mut o1, o2) = rayon::join(
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec(other, a, l, visit, &mut o);
+                        self.cross_rec_slots(other, a, l, visit, &mut o);
                         o
                     },
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec(other, a, r, visit, &mut o);
+                        self.cross_rec_slots(other, a, r, visit, &mut o);
                         o
                     },
                 );
                 o1.extend(o2);
                 out.extend(o1);
             } else {
-                self.cross_rec(other, a, l, visit, out);
-                self.cross_rec(other, a, r, visit, out);
+                self.cross_rec_slots(other, a, l, visit, out);
+                self.cross_rec_slots(other, a, r, visit, out);
             }
         }
     }
@@ -291,52 +401,80 @@ impl Bvh {
     }
 }
 
-fn build_rec(
-    nodes: &mut Vec<Node>,
-    order: &mut [u32],
-    offset: u32,
-    centers: &[[f64; 3]],
-    aabbs: &[Aabb],
-) -> usize {
-    let idx = nodes.len();
-    let aabb = order
-        .iter()
-        .fold(Aabb::EMPTY, |a, &i| a.union(&aabbs[i as usize]));
-    let size = order.len() as u32;
-    nodes.push(Node {
-        aabb,
-        start: offset,
-        count: size,
-        right: 0,
+/// Interleaves the low 21 bits of x, y, z.
+fn morton3(x: u64, y: u64, z: u64) -> u64 {
+    fn spread(mut v: u64) -> u64 {
+        v &= 0x1f_ffff;
+        v = (v | v << 32) & 0x1f_0000_0000_ffff;
+        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
+        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+        v = (v | v << 2) & 0x1249_2492_4924_9249;
+        v
+    }
+    spread(x) | spread(y) << 1 | spread(z) << 2
+}
+
+/// Where the sorted range `codes` is split: after the last code that shares the first code's
+/// highest differing bit with the last code; the middle when all codes are equal.
+fn split_point(codes: &[u64]) -> usize {
+    let (first, last) = (codes[0], codes[codes.len() - 1]);
+    if first == last {
+        return codes.len() / 2;
+    }
+    let bit = 63 - (first ^ last).leading_zeros();
+    // First index whose code has `bit` set (codes are sorted and agree above `bit`).
+    let p = codes.partition_point(|&c| (c >> bit) & 1 == 0);
+    p.clamp(1, codes.len() - 1)
+}
+
+/// Number of nodes of the tree over `codes`.
+fn node_count(codes: &[u64]) -> usize {
+    if codes.len() <= LEAF_SIZE {
+        return 1;
+    }
+    let m = split_point(codes);
+    1 + node_count(&codes[..m]) + node_count(&codes[m..])
+}
+
+/// Builds the subtree over slots `offset..offset + codes.len()` into `nodes` (its first element is
+/// the subtree's root, at global index `base`).
+fn build_range(nodes: &mut [Node], base: usize, codes: &[u64], boxes: &[Aabb], offset: u32) {
+    let size = codes.len() as u32;
+    if codes.len() <= LEAF_SIZE {
+        let aabb = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
+        nodes[0] = Node {
+            aabb,
+            start: offset,
+            count: size,
+            right: 0,
+            size,
+            first: offset,
+        };
+        return;
+    }
+    let m = split_point(codes);
+    let left_count = node_count(&codes[..m]);
+    let (root, rest) = nodes.split_at_mut(1);
+    let (left, right) = rest.split_at_mut(left_count);
+    let (lb, rb) = (base + 1, base + 1 + left_count);
+    if codes.len() as u32 >= PAR_CUTOFF {
+        rayon::join(
+            || build_range(left, lb, &codes[..m], &boxes[..m], offset),
+            || build_range(right, rb, &codes[m..], &boxes[m..], offset + m as u32),
+        );
+    } else {
+        build_range(left, lb, &codes[..m], &boxes[..m], offset);
+        build_range(right, rb, &codes[m..], &boxes[m..], offset + m as u32);
+    }
+    root[0] = Node {
+        aabb: left[0].aabb.union(&right[0].aabb),
+        start: lb as u32,
+        count: 0,
+        right: rb as u32,
         size,
-    });
-    if order.len() <= LEAF_SIZE {
-        return idx;
-    }
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for &i in order.iter() {
-        let c = centers[i as usize];
-        for k in 0..3 {
-            lo[k] = lo[k].min(c[k]);
-            hi[k] = hi[k].max(c[k]);
-        }
-    }
-    let axis = (0..3)
-        .max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b])))
-        .unwrap_or(0);
-    let mid = order.len() / 2;
-    order.select_nth_unstable_by(mid, |&a, &b| {
-        centers[a as usize][axis]
-            .total_cmp(&centers[b as usize][axis])
-            .then(a.cmp(&b))
-    });
-    let (left, right) = order.split_at_mut(mid);
-    let l = build_rec(nodes, left, offset, centers, aabbs);
-    let r = build_rec(nodes, right, offset + mid as u32, centers, aabbs);
-    nodes[idx].start = l as u32;
-    nodes[idx].count = 0;
-    nodes[idx].right = r as u32;
-    idx
+        first: offset,
+    };
 }
 
 #[cfg(test)]
@@ -398,6 +536,43 @@ mod tests {
                 let want: Vec<u32> = (0..moved.len() as u32).filter(|&i| moved[i as usize].overlaps(q)).collect();
                 prop_assert_eq!(hits, want);
             }
+        }
+    }
+
+    #[test]
+    fn culled_subtrees_lose_exactly_their_inner_pairs() {
+        let raw: Vec<([f64; 3], [f64; 3])> = (0..600)
+            .map(|i| {
+                (
+                    [(i % 30) as f64 * 0.5, (i / 30) as f64 * 0.5, 0.0],
+                    [0.4, 0.4, 0.4],
+                )
+            })
+            .collect();
+        let a = boxes(&raw);
+        let bvh = Bvh::build(&a);
+        let all: Vec<(u32, u32)> = bvh.self_slot_pairs(|i, j, o| o.push((i, j)));
+        // Cull every subtree lying in the first half of the slots.
+        let half = (a.len() / 2) as u32;
+        let culled: Vec<(u32, u32)> =
+            bvh.self_slot_pairs_culled(|i, j, o| o.push((i, j)), |_, f, n| f + n <= half);
+        // fold_up: sizes computed bottom-up equal the subtree sizes.
+        let sizes = bvh.fold_up(|r| r.len() as u32, |a, b| a + b);
+        assert_eq!(sizes[0], a.len() as u32);
+        let mut want: Vec<(u32, u32)> = all
+            .iter()
+            .copied()
+            .filter(|&(i, j)| !(i < half && j < half))
+            .collect();
+        let mut got = culled.clone();
+        want.sort();
+        got.sort();
+        // Pairs inside the culled half may only disappear if their whole subtree was culled;
+        // every pair with a slot outside it must remain.
+        assert!(want.iter().all(|p| got.contains(p)));
+        assert!(got.len() < all.len());
+        for p in &got {
+            assert!(all.contains(p));
         }
     }
 

@@ -37,6 +37,72 @@ pub fn edge_crosses_triangle(
     s3 == s1
 }
 
+/// [`edge_crosses_triangle`] for an edge whose endpoints are already known to lie strictly on
+/// opposite sides of the triangle's plane (e.g. from a certified floating-point test): only the
+/// three side tests remain, with the same symbolic perturbation, so the answer is identical.
+#[inline]
+pub fn straddling_edge_crosses_triangle(
+    p: &Vec3,
+    q: &Vec3,
+    a: &Vec3,
+    b: &Vec3,
+    c: &Vec3,
+    ids: [u32; 5],
+) -> bool {
+    let [ip, iq, ia, ib, ic] = ids;
+    let s1 = orient3d_sos([p, q, a, b], [ip, iq, ia, ib]);
+    let s2 = orient3d_sos([p, q, b, c], [ip, iq, ib, ic]);
+    if s1 != s2 || s1 == 0 {
+        return false;
+    }
+    orient3d_sos([p, q, c, a], [ip, iq, ic, ia]) == s1
+}
+
+/// A triangle's plane with a certified floating-point side test.
+#[derive(Clone, Copy, Debug)]
+pub struct CertifiedPlane {
+    n: Vec3,
+    a: Vec3,
+    k: Real,
+}
+
+impl CertifiedPlane {
+    /// The plane of triangle `(a, b, c)`.
+    #[inline]
+    pub fn new(a: &Vec3, b: &Vec3, c: &Vec3) -> Self {
+        let l1 = |d: &Vec3| d.x.abs() + d.y.abs() + d.z.abs();
+        let (ab, ac) = (b - a, c - a);
+        CertifiedPlane {
+            n: ab.cross(&ac),
+            a: *a,
+            // Forward error bound of n . (p - a), over |p - a|_1 (generously rounded up).
+            k: 1e-14 * l1(&ab) * l1(&ac),
+        }
+    }
+
+    /// The (unnormalised) normal `(b - a) x (c - a)`.
+    #[inline]
+    pub fn normal(&self) -> Vec3 {
+        self.n
+    }
+
+    /// `+1` or `-1` when `p` is certainly strictly on that side (matching the sign of the exact
+    /// `n . (p - a)`, which is `-orient3d(a, b, c, p)`), `0` when too close to tell.
+    #[inline]
+    pub fn side(&self, p: &Vec3) -> i8 {
+        let d = p - self.a;
+        let s = self.n.dot(&d);
+        let tol = self.k * (d.x.abs() + d.y.abs() + d.z.abs());
+        if s > tol {
+            1
+        } else if s < -tol {
+            -1
+        } else {
+            0
+        }
+    }
+}
+
 /// A quick floating-point rejection test for `edge_crosses_triangle`: returns `false` only when
 /// both edge endpoints are certainly strictly on the same side of the triangle's plane.
 ///
@@ -54,6 +120,125 @@ pub fn edge_may_cross_plane(p: &Vec3, q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) ->
     let scale = mag(&(b - a)) * mag(&(c - a));
     let bound = 1e-14 * scale * (mag(&(p - a)) + mag(&(q - a)));
     dp.abs() <= bound || dq.abs() <= bound
+}
+
+/// A quick floating-point rejection test in the projection onto the coordinate plane most
+/// parallel to the triangle: returns `false` only when the projections of segment `(p, q)` and
+/// triangle `(a, b, c)` are certainly disjoint (separated by a triangle edge or by the segment's
+/// line, with a conservative error margin). Disjoint projections mean disjoint sets, so the edge
+/// cannot cross the triangle under any infinitesimal perturbation either. This is the test that
+/// decides exactly coplanar configurations (flat cloth) without exact arithmetic.
+#[inline]
+pub fn edge_may_overlap_projected(p: &Vec3, q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> bool {
+    let n = (b - a).cross(&(c - a));
+    let (ax, ay, az) = (n.x.abs(), n.y.abs(), n.z.abs());
+    // Drop the dominant axis.
+    let (u, v) = if az >= ax && az >= ay {
+        (0, 1)
+    } else if ax >= ay {
+        (1, 2)
+    } else {
+        (2, 0)
+    };
+    let pr = |x: &Vec3| (x[u], x[v]);
+    let (p2, q2, a2, b2, c2) = (pr(p), pr(q), pr(a), pr(b), pr(c));
+    let o = |o: (f64, f64), x: (f64, f64), y: (f64, f64)| {
+        (x.0 - o.0) * (y.1 - o.1) - (x.1 - o.1) * (y.0 - o.0)
+    };
+    // Conservative error margin: a few ulps of the squared coordinate range involved.
+    let mut m = 0.0f64;
+    for w in [p2, q2, a2, b2, c2] {
+        m = m.max(w.0.abs()).max(w.1.abs());
+    }
+    let tol = 1e-13 * m * m;
+    let area = o(a2, b2, c2);
+    if area.abs() <= tol {
+        return true; // the projection is too thin to judge: let the exact test decide
+    }
+    let s = area.signum();
+    for (x, y) in [(a2, b2), (b2, c2), (c2, a2)] {
+        if s * o(x, y, p2) < -tol && s * o(x, y, q2) < -tol {
+            return false;
+        }
+    }
+    let (da, db, dc) = (o(p2, q2, a2), o(p2, q2, b2), o(p2, q2, c2));
+    if (da > tol && db > tol && dc > tol) || (da < -tol && db < -tol && dc < -tol) {
+        return false;
+    }
+    true
+}
+
+/// A quick floating-point rejection test for a triangle pair: returns `false` only when the
+/// closed triangles are certainly disjoint — one lies strictly on one side of the other's plane,
+/// or their projections onto the coordinate plane most parallel to `b` are separated along one of
+/// the six edge normals (both with conservative error margins). Disjoint closed triangles have no
+/// crossing under any infinitesimal perturbation, so this never rejects what
+/// [`edge_crosses_triangle`] would accept.
+#[inline]
+pub fn triangles_may_intersect(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
+    let l1 = |d: &Vec3| d.x.abs() + d.y.abs() + d.z.abs();
+    let separated_by_plane = |p: &[Vec3; 3], q: &[Vec3; 3]| {
+        let n = (q[1] - q[0]).cross(&(q[2] - q[0]));
+        let d = [
+            n.dot(&(p[0] - q[0])),
+            n.dot(&(p[1] - q[0])),
+            n.dot(&(p[2] - q[0])),
+        ];
+        let reach = l1(&(p[0] - q[0]))
+            .max(l1(&(p[1] - q[0])))
+            .max(l1(&(p[2] - q[0])));
+        let tol = 1e-14 * l1(&(q[1] - q[0])) * l1(&(q[2] - q[0])) * reach;
+        (d[0] > tol && d[1] > tol && d[2] > tol) || (d[0] < -tol && d[1] < -tol && d[2] < -tol)
+    };
+    if separated_by_plane(a, b) || separated_by_plane(b, a) {
+        return false;
+    }
+    triangles_may_overlap_projected(a, b)
+}
+
+/// The projected half of [`triangles_may_intersect`]: `false` only when the projections of the
+/// two triangles onto the coordinate plane most parallel to `b` are certainly separated along one
+/// of their six edge normals. Decides exactly coplanar pairs (flat cloth) without exact arithmetic.
+#[inline]
+pub fn triangles_may_overlap_projected(a: &[Vec3; 3], b: &[Vec3; 3]) -> bool {
+    let n = (b[1] - b[0]).cross(&(b[2] - b[0]));
+    let (ax, ay, az) = (n.x.abs(), n.y.abs(), n.z.abs());
+    let (u, v) = if az >= ax && az >= ay {
+        (0, 1)
+    } else if ax >= ay {
+        (1, 2)
+    } else {
+        (2, 0)
+    };
+    let pa = [(a[0][u], a[0][v]), (a[1][u], a[1][v]), (a[2][u], a[2][v])];
+    let pb = [(b[0][u], b[0][v]), (b[1][u], b[1][v]), (b[2][u], b[2][v])];
+    let mut m = 0.0f64;
+    for w in pa.iter().chain(pb.iter()) {
+        m = m.max(w.0.abs()).max(w.1.abs());
+    }
+    let tol = 1e-13 * m * m;
+    for tri in [&pa, &pb] {
+        for k in 0..3 {
+            let (x, y) = (tri[k], tri[(k + 1) % 3]);
+            let (nx, ny) = (y.1 - x.1, x.0 - y.0);
+            let f = |w: &(f64, f64)| nx * (w.0 - x.0) + ny * (w.1 - x.1);
+            let (mut alo, mut ahi, mut blo, mut bhi) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+            for w in &pa {
+                let t = f(w);
+                alo = alo.min(t);
+                ahi = ahi.max(t);
+            }
+            for w in &pb {
+                let t = f(w);
+                blo = blo.min(t);
+                bhi = bhi.max(t);
+            }
+            if ahi < blo - tol || bhi < alo - tol {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 /// Parameter `s` in `[0, 1]` along `(p, q)` and barycentric coordinates `(u, v, w)` on `(a, b, c)`
@@ -186,7 +371,68 @@ mod tests {
                 prop_assert_eq!(got, expected);
                 if got {
                     prop_assert!(edge_may_cross_plane(&p[0], &p[1], &p[2], &p[3], &p[4]));
+                    prop_assert!(edge_may_overlap_projected(&p[0], &p[1], &p[2], &p[3], &p[4]));
                 }
+            }
+        }
+
+        /// Certified plane sides agree with the exact orientation, and the straddling shortcut
+        /// agrees with the full test whenever the sides are certified opposite.
+        #[test]
+        fn certified_sides_and_straddling_shortcut(
+            pts in proptest::array::uniform5(proptest::array::uniform3(-1.0f64..1.0)),
+            lattice in proptest::array::uniform5(proptest::array::uniform3(-2i32..=2)),
+        ) {
+            for p in [
+                pts.iter().map(|c| v(c[0], c[1], c[2])).collect::<Vec<_>>(),
+                lattice.iter().map(|c| v(c[0] as f64, c[1] as f64, c[2] as f64)).collect::<Vec<_>>(),
+            ] {
+                let plane = CertifiedPlane::new(&p[2], &p[3], &p[4]);
+                let exact = |x: &Vec3| -super::super::predicates::orient3d(&p[2], &p[3], &p[4], x).signum();
+                for x in [&p[0], &p[1]] {
+                    let s = plane.side(x);
+                    if s != 0 {
+                        prop_assert_eq!(s as f64, exact(x));
+                    }
+                }
+                let (sp, sq) = (plane.side(&p[0]), plane.side(&p[1]));
+                if sp != 0 && sq != 0 && sp != sq {
+                    prop_assert_eq!(
+                        straddling_edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], [0, 1, 2, 3, 4]),
+                        edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], [0, 1, 2, 3, 4])
+                    );
+                }
+            }
+        }
+
+        /// The pair filter never rejects an intersecting pair, generic or with ties.
+        #[test]
+        fn pair_filter_never_rejects_an_intersection(
+            pts in proptest::array::uniform6(proptest::array::uniform3(-2i32..=2)),
+            jitter in proptest::bool::ANY,
+        ) {
+            let mut p: Vec<Vec3> = pts.iter().map(|c| v(c[0] as f64, c[1] as f64, c[2] as f64)).collect();
+            if jitter {
+                for (i, q) in p.iter_mut().enumerate() {
+                    *q += v(0.013 * i as f64, -0.007 * i as f64, 0.011);
+                }
+            }
+            if triangles_intersect([0, 1, 2], [3, 4, 5], &p) {
+                prop_assert!(triangles_may_intersect(&[p[0], p[1], p[2]], &[p[3], p[4], p[5]]));
+                prop_assert!(triangles_may_intersect(&[p[3], p[4], p[5]], &[p[0], p[1], p[2]]));
+            }
+        }
+
+        /// The filters never reject a crossing decided with ties (integer lattice, many exactly
+        /// coplanar configurations).
+        #[test]
+        fn filters_never_reject_a_crossing_with_ties(
+            pts in proptest::array::uniform5(proptest::array::uniform3(-2i32..=2)),
+        ) {
+            let p: Vec<Vec3> = pts.iter().map(|c| v(c[0] as f64, c[1] as f64, c[2] as f64)).collect();
+            if edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], [0, 1, 2, 3, 4]) {
+                prop_assert!(edge_may_cross_plane(&p[0], &p[1], &p[2], &p[3], &p[4]));
+                prop_assert!(edge_may_overlap_projected(&p[0], &p[1], &p[2], &p[3], &p[4]));
             }
         }
 

@@ -22,6 +22,8 @@ pub struct Group {
     pub first: u32,
     /// Number of triangles.
     pub count: u32,
+    /// An OBJ object (`o`) rather than a group (`g`): objects are analysed as separate pieces.
+    pub is_object: bool,
 }
 
 /// The uv layer: coordinates and, for every triangle, the indices of its three corners' uvs.
@@ -74,6 +76,96 @@ impl Mesh {
         };
         m.validate()?;
         Ok(m)
+    }
+
+    /// The mesh's OBJ objects (`o` blocks) as separate meshes, so several garments in one file are
+    /// analysed as separate pieces. Triangles before the first `o` form an object of their own.
+    /// When objects share a vertex they are one surface and the mesh is returned whole.
+    pub fn split_objects(&self) -> Vec<Mesh> {
+        let objects: Vec<&Group> = self.groups.iter().filter(|g| g.is_object).collect();
+        let mut ranges: Vec<(String, u32, u32)> = Vec::new();
+        let first = objects.first().map(|g| g.first).unwrap_or(0);
+        if first > 0 {
+            ranges.push((self.name.clone(), 0, first));
+        }
+        for (i, g) in objects.iter().enumerate() {
+            let end = objects
+                .get(i + 1)
+                .map(|n| n.first)
+                .unwrap_or(self.triangles.len() as u32);
+            if end > g.first {
+                ranges.push((g.name.clone(), g.first, end));
+            }
+        }
+        if ranges.len() <= 1 {
+            return vec![self.clone()];
+        }
+        let mut owner = vec![u32::MAX; self.positions.len()];
+        for (k, r) in ranges.iter().enumerate() {
+            for t in &self.triangles[r.1 as usize..r.2 as usize] {
+                for &v in t {
+                    if owner[v as usize] != u32::MAX && owner[v as usize] != k as u32 {
+                        return vec![self.clone()];
+                    }
+                    owner[v as usize] = k as u32;
+                }
+            }
+        }
+        ranges
+            .iter()
+            .map(|(name, a, b)| self.sub_mesh(name, *a, *b))
+            .collect()
+    }
+
+    /// Triangles `a..b` as a mesh of their own (vertices and uvs renumbered in order of use).
+    fn sub_mesh(&self, name: &str, a: u32, b: u32) -> Mesh {
+        let renumber = |tris: &[[u32; 3]]| {
+            let mut map = std::collections::BTreeMap::new();
+            for &v in tris.iter().flatten() {
+                let n = map.len() as u32;
+                map.entry(v).or_insert(n);
+            }
+            map
+        };
+        let tris = &self.triangles[a as usize..b as usize];
+        let map = renumber(tris);
+        let mut positions = vec![Vec3::zeros(); map.len()];
+        for (&old, &new) in &map {
+            positions[new as usize] = self.positions[old as usize];
+        }
+        let uv = self.uv.as_ref().map(|uv| {
+            let ut = &uv.triangles[a as usize..b as usize];
+            let umap = renumber(ut);
+            let mut coords = vec![Vec2::zeros(); umap.len()];
+            for (&old, &new) in &umap {
+                coords[new as usize] = uv.coords[old as usize];
+            }
+            UvLayer {
+                coords,
+                triangles: ut.iter().map(|t| t.map(|i| umap[&i])).collect(),
+            }
+        });
+        Mesh {
+            name: name.to_string(),
+            positions,
+            triangles: tris.iter().map(|t| t.map(|v| map[&v])).collect(),
+            uv,
+            groups: self
+                .groups
+                .iter()
+                .filter(|g| !g.is_object && g.first >= a && g.first < b)
+                .map(|g| Group {
+                    name: g.name.clone(),
+                    first: g.first - a,
+                    count: g.count.min(b - g.first),
+                    is_object: false,
+                })
+                .collect(),
+            source: self.source.as_ref().map(|s| Source {
+                file: s.file.clone(),
+                triangle_lines: s.triangle_lines[a as usize..b as usize].to_vec(),
+            }),
+        }
     }
 
     /// A human-readable location for triangle `t`: `file:line` or `mesh 'name', triangle t`.
@@ -189,4 +281,33 @@ fn is_collinear(a: &Vec3, b: &Vec3, c: &Vec3) -> bool {
         )
     };
     o(0, 1) == 0.0 && o(1, 2) == 0.0 && o(2, 0) == 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::obj::parse_obj;
+
+    #[test]
+    fn objects_split_into_separate_meshes() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 0 0\nv 6 0 0\nv 5 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n\
+                    o first\nf 1/1 2/2 3/3\no second\ng part\nf 4/1 5/2 6/3\n";
+        let m = parse_obj(text, "t.obj", "t").unwrap();
+        let parts = m.split_objects();
+        assert_eq!(parts.len(), 2);
+        assert_eq!(parts[0].name, "first");
+        assert_eq!(parts[1].positions[0], m.positions[3]);
+        assert_eq!(parts[1].triangles, vec![[0, 1, 2]]);
+        assert_eq!(parts[1].uv.as_ref().unwrap().coords.len(), 3);
+        assert_eq!(parts[1].groups[0].name, "part");
+        assert_eq!(parts[1].triangle_place(0), "t.obj:14");
+        // Objects sharing a vertex stay one surface.
+        let shared = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\no a\nf 1 2 3\no b\nf 2 4 3\n";
+        assert_eq!(
+            parse_obj(shared, "s.obj", "s")
+                .unwrap()
+                .split_objects()
+                .len(),
+            1
+        );
+    }
 }

@@ -104,8 +104,12 @@ pub fn parse_obj(text: &str, file: &str, name: &str) -> Result<Mesh> {
             "o" | "g" => {
                 let gname = content.trim_start()[kw.len()..].trim().to_string();
                 let first = tris.len() as u32;
-                if let Some(last) = groups.last_mut() {
-                    last.count = first - last.first;
+                let is_object = kw == "o";
+                // An object runs to the next `o`, a group to the next `o` or `g`.
+                for g in groups.iter_mut() {
+                    if (is_object || !g.is_object) && g.count == u32::MAX {
+                        g.count = first - g.first;
+                    }
                 }
                 groups.push(Group {
                     name: if gname.is_empty() {
@@ -114,14 +118,17 @@ pub fn parse_obj(text: &str, file: &str, name: &str) -> Result<Mesh> {
                         gname
                     },
                     first,
-                    count: 0,
+                    count: u32::MAX,
+                    is_object,
                 });
             }
             _ => {}
         }
     }
-    if let Some(last) = groups.last_mut() {
-        last.count = tris.len() as u32 - last.first;
+    for g in groups.iter_mut() {
+        if g.count == u32::MAX {
+            g.count = tris.len() as u32 - g.first;
+        }
     }
     groups.retain(|g| g.count > 0);
     if tris.is_empty() {
@@ -277,7 +284,9 @@ pub fn format_obj(mesh: &Mesh, colors: Option<&[[f32; 3]]>, header: &str) -> Str
     for l in header.lines() {
         let _ = writeln!(s, "# {l}");
     }
-    let _ = writeln!(s, "o {}", mesh.name);
+    if !mesh.groups.iter().any(|g| g.is_object) {
+        let _ = writeln!(s, "o {}", mesh.name);
+    }
     for (i, p) in mesh.positions.iter().enumerate() {
         match colors.and_then(|c| c.get(i)) {
             Some(c) => {
@@ -300,7 +309,8 @@ pub fn format_obj(mesh: &Mesh, colors: Option<&[[f32; 3]]>, header: &str) -> Str
     let mut g = 0;
     for (t, tri) in mesh.triangles.iter().enumerate() {
         while g < mesh.groups.len() && mesh.groups[g].first as usize == t {
-            let _ = writeln!(s, "g {}", mesh.groups[g].name);
+            let kw = if mesh.groups[g].is_object { "o" } else { "g" };
+            let _ = writeln!(s, "{kw} {}", mesh.groups[g].name);
             g += 1;
         }
         match &mesh.uv {
@@ -357,7 +367,8 @@ mod tests {
             vec![Group {
                 name: "quad".into(),
                 first: 0,
-                count: 2
+                count: 2,
+                is_object: true
             }]
         );
         let m = parse("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf -3//1 -2//1 -1//1\n").unwrap();
@@ -374,7 +385,9 @@ mod tests {
         assert_eq!(back.positions, m.positions);
         assert_eq!(back.triangles, m.triangles);
         assert_eq!(back.uv, m.uv);
-        assert_eq!(back.groups, m.groups);
+        // The writer names the mesh with an `o` line; the groups follow unchanged.
+        assert!(back.groups[0].is_object && back.groups[0].name == "t");
+        assert_eq!(back.groups[1..], m.groups[..]);
     }
 
     #[test]

@@ -5,9 +5,12 @@
 //! tie rule is exercised separately.
 
 pub mod exploded;
+pub mod folded;
+pub mod garment;
+pub mod outfit;
+pub mod rudimentary;
 pub mod sheet;
 
-pub use exploded::exploded_handkerchief;
 pub use sheet::handkerchief;
 
 use crate::geom::Vec3;
@@ -25,20 +28,31 @@ pub struct Scene {
 }
 
 /// Names accepted by [`by_name`].
-pub const NAMES: &[&str] = &["closed", "exploded"];
+pub const NAMES: &[&str] = &[
+    "closed", "ll", "eight", "cross", "bbii", "bibi", "bli", "exploded", "folded",
+];
 
 /// Builds a scene by name; `size` is the handkerchief resolution (cells per side, `None` for the
 /// default) and `seed` drives random scenes.
+///
+/// For the loop-vertex cores (`ll`, `eight`, `cross`, `bli`) `size` is the number of subdivision
+/// levels (default 2); for `folded` it is the cells per side (default 125: 31,250 triangles, 4
+/// dents); for `exploded` the cells per side (default 14) and `seed` the random draw; for `skirt`
+/// the cells around each panel (default 40, 3 dents).
 pub fn by_name(name: &str, size: Option<usize>, seed: u64) -> Option<Scene> {
-    match name {
-        "closed" => Some(closed(size.unwrap_or(16))),
-        "exploded" => Some(Scene {
-            name: "exploded".into(),
-            meshes: vec![exploded_handkerchief(size.unwrap_or(14), 0.2, 0.25, seed)],
-            expected: vec![],
-        }),
-        _ => None,
-    }
+    Some(match name {
+        "closed" => closed(size.unwrap_or(16)),
+        "ll" => rudimentary::loop_loop(size.unwrap_or(2)),
+        "eight" => rudimentary::eight(size.unwrap_or(2)),
+        "cross" => rudimentary::cross(size.unwrap_or(2)),
+        "bli" => rudimentary::bli(size.unwrap_or(2)),
+        "bbii" => rudimentary::bb_ii(size.unwrap_or(16)),
+        "bibi" => rudimentary::bi_bi(size.unwrap_or(16)),
+        "exploded" => exploded::exploded(seed, size.unwrap_or(14)),
+        "folded" => folded::folded(size.unwrap_or(125), 4),
+        "skirt" => garment::skirt(size.unwrap_or(40), 3),
+        _ => return None,
+    })
 }
 
 /// CLOSED (Cha & Ko Fig. 13): handkerchief B lies above handkerchief A and a round dent of B

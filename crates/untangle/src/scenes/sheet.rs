@@ -49,6 +49,7 @@ pub fn handkerchief(
             name: name.into(),
             first: 0,
             count: triangles.len() as u32,
+            is_object: true,
         }],
         triangles,
         source: None,

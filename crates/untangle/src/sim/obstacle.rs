@@ -26,8 +26,8 @@ impl Obstacle {
     /// An obstacle from a validated mesh.
     pub fn from_mesh(mesh: &Mesh, thickness: f64, friction: f64) -> Result<Obstacle> {
         mesh.validate()?;
-        if !(thickness >= 0.0 && thickness.is_finite()) || !(friction >= 0.0 && friction.is_finite())
-        {
+        let ok = |x: f64| x >= 0.0 && x.is_finite();
+        if !ok(thickness) || !ok(friction) {
             return Err(Error::Parameter(format!(
                 "obstacle '{}': thickness and friction must be finite and >= 0",
                 mesh.name
@@ -117,7 +117,10 @@ impl Obstacles {
                 ),
             ));
         }
-        if let Some(i) = positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        if let Some(i) = positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
             return Err(Error::input(
                 format!("obstacle '{}'", self.names[id]),
                 format!("vertex {} has a non-finite coordinate", i + 1),

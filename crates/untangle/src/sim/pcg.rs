@@ -74,7 +74,9 @@ pub fn solve(
             d.try_inverse()
                 .filter(|m| m.iter().all(|v| v.is_finite()))
                 .unwrap_or_else(|| {
-                    let s = d.diagonal().map(|v| if v.abs() > 0.0 { 1.0 / v } else { 0.0 });
+                    let s = d
+                        .diagonal()
+                        .map(|v| if v.abs() > 0.0 { 1.0 / v } else { 0.0 });
                     Matrix3::from_diagonal(&s)
                 })
         })
@@ -121,7 +123,7 @@ pub fn solve(
             }
         });
         let cq = dot(&c, &q);
-        if !(cq > 0.0) {
+        if cq.is_nan() || cq <= 0.0 {
             break;
         }
         let alpha = delta_new / cq;
@@ -230,7 +232,8 @@ mod tests {
                 let zi = (Matrix3::identity() - si) * z[i];
                 zc.fixed_rows_mut::<3>(3 * i).copy_from(&zi);
             }
-            let bd = nalgebra::DVector::from_iterator(3 * n, b.iter().flat_map(|v| [v.x, v.y, v.z]));
+            let bd =
+                nalgebra::DVector::from_iterator(3 * n, b.iter().flat_map(|v| [v.x, v.y, v.z]));
             let lhs = &s * &d * &s + (nalgebra::DMatrix::identity(3 * n, 3 * n) - &s);
             let rhs = &s * (bd - &d * &zc);
             let y = lhs.lu().solve(&rhs).unwrap();

@@ -112,8 +112,14 @@ impl ContactPolicy for RedGreen {
     }
     fn vertex_triangle(&self, vertex: u32, triangle: u32) -> Contact {
         self.decide(
-            self.red_vertex.get(vertex as usize).copied().unwrap_or(false),
-            self.red_triangle.get(triangle as usize).copied().unwrap_or(false),
+            self.red_vertex
+                .get(vertex as usize)
+                .copied()
+                .unwrap_or(false),
+            self.red_triangle
+                .get(triangle as usize)
+                .copied()
+                .unwrap_or(false),
         )
     }
     fn edge_edge(&self, a: u32, b: u32) -> Contact {
@@ -145,7 +151,10 @@ mod tests {
         assert_eq!(p.edge_edge(1, 0), Contact::Thickness(5e-3));
         assert_eq!(p.edge_edge(1, 1), Contact::Thickness(1e-3));
         assert_eq!(p.max_thickness(), 5e-3);
-        let o = ObstaclePair::ClothVertex { vertex: 0, triangle: 0 };
+        let o = ObstaclePair::ClothVertex {
+            vertex: 0,
+            triangle: 0,
+        };
         assert_eq!(p.obstacle(o, 2e-3), Contact::Thickness(2e-3));
     }
 }

@@ -30,9 +30,7 @@ impl RestShape {
     ) -> Result<RestShape> {
         let rest: Vec<Result<TriangleRest>> = uv_triangles
             .par_iter()
-            .map(|t| {
-                TriangleRest::new(&uv[t[0] as usize], &uv[t[1] as usize], &uv[t[2] as usize])
-            })
+            .map(|t| TriangleRest::new(&uv[t[0] as usize], &uv[t[1] as usize], &uv[t[2] as usize]))
             .collect();
         let mut tris = Vec::with_capacity(rest.len());
         for (i, r) in rest.into_iter().enumerate() {

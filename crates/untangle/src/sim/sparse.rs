@@ -47,7 +47,9 @@ impl BsrPattern {
         let diag = (0..n)
             .map(|i| {
                 let (s, e) = (offsets[i] as usize, offsets[i + 1] as usize);
-                (s + cols[s..e].binary_search(&(i as u32)).expect("diagonal present")) as u32
+                (s + cols[s..e]
+                    .binary_search(&(i as u32))
+                    .expect("diagonal present")) as u32
             })
             .collect();
         BsrPattern {
@@ -94,20 +96,18 @@ impl BsrMatrix {
 
     /// `y = A x`, parallel over block rows.
     pub fn mul(&self, pattern: &BsrPattern, x: &[Vec3], y: &mut [Vec3]) {
-        y.par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(c, ys)| {
-                let r0 = c * CHUNK;
-                for (k, yi) in ys.iter_mut().enumerate() {
-                    let i = r0 + k;
-                    let (s, e) = (pattern.offsets[i] as usize, pattern.offsets[i + 1] as usize);
-                    let mut acc = Vec3::zeros();
-                    for slot in s..e {
-                        acc += self.values[slot] * x[pattern.cols[slot] as usize];
-                    }
-                    *yi = acc;
+        y.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
+            let r0 = c * CHUNK;
+            for (k, yi) in ys.iter_mut().enumerate() {
+                let i = r0 + k;
+                let (s, e) = (pattern.offsets[i] as usize, pattern.offsets[i + 1] as usize);
+                let mut acc = Vec3::zeros();
+                for slot in s..e {
+                    acc += self.values[slot] * x[pattern.cols[slot] as usize];
                 }
-            });
+                *yi = acc;
+            }
+        });
     }
 
     /// The dense matrix (for tests and small checks).

@@ -51,6 +51,9 @@ pub struct SimParams {
     pub cg_max_iterations: usize,
     /// Whether collisions are handled at all.
     pub collisions: bool,
+    /// Whether proximity repulsion runs before CCD (turning it off leaves everything to CCD
+    /// impulses and impact zones; for testing the fail-safes).
+    pub proximity: bool,
     /// Fraction of a pair's thickness that CCD guarantees (proximity aims at the full thickness).
     pub ccd_ratio: f64,
     /// CCD impulse passes before impact zones.
@@ -74,8 +77,9 @@ impl Default for SimParams {
             cg_tolerance: 1e-3,
             cg_max_iterations: 200,
             collisions: true,
+            proximity: true,
             ccd_ratio: 0.5,
-            max_impulse_iterations: 5,
+            max_impulse_iterations: 12,
             max_zone_iterations: 100,
         }
     }
@@ -88,14 +92,18 @@ impl SimParams {
             if v > 0.0 && v.is_finite() {
                 Ok(())
             } else {
-                Err(Error::Parameter(format!("{name} must be positive and finite, got {v}")))
+                Err(Error::Parameter(format!(
+                    "{name} must be positive and finite, got {v}"
+                )))
             }
         };
         let nonneg = |name: &str, v: f64| {
             if v >= 0.0 && v.is_finite() {
                 Ok(())
             } else {
-                Err(Error::Parameter(format!("{name} must be >= 0 and finite, got {v}")))
+                Err(Error::Parameter(format!(
+                    "{name} must be >= 0 and finite, got {v}"
+                )))
             }
         };
         pos("dt", self.dt)?;
@@ -132,10 +140,14 @@ pub struct Simulator {
     x: Vec<Vec3>,
     v: Vec<Vec3>,
     pinned: Vec<bool>,
+    /// Where a pinned vertex moves during the next step (`None`: it stays).
+    pin_targets: Vec<Option<Vec3>>,
     obstacles: Obstacles,
     pattern: BsrPattern,
     /// Slot of block `(tri[i], tri[j])` for each triangle, row-major `3 * i + j`.
     tri_slots: Vec<[u32; 9]>,
+    /// Per triangle, the vertex across each edge (see `collision::Scene::hinge`).
+    hinge: Vec<[u32; 3]>,
     /// Bending Hessian per slot (a multiple of the identity), rebuilt with the rest shape.
     bend_base: Vec<f64>,
     broad: BroadPhase,
@@ -152,12 +164,14 @@ impl Simulator {
         let mesh = &garment.mesh;
         let uv = garment.uv();
         let topology = garment.topology.clone();
-        let rest = RestShape::new(&mesh.triangles, &uv.triangles, &uv.coords, &topology)
-            .map_err(|e| match e {
-                Error::Input { place, message } => {
-                    Error::input(format!("{} {}", mesh.place(), place), message)
+        let rest =
+            RestShape::new(&mesh.triangles, &uv.triangles, &uv.coords, &topology).map_err(|e| {
+                match e {
+                    Error::Input { place, message } => {
+                        Error::input(format!("{} {}", mesh.place(), place), message)
+                    }
+                    other => other,
                 }
-                other => other,
             })?;
         let n = mesh.positions.len();
         let mut mass = vec![0.0; n];
@@ -194,7 +208,24 @@ impl Simulator {
                 s
             })
             .collect();
+        let hinge = (0..mesh.triangles.len() as u32)
+            .map(|t| {
+                let e = topology.triangle_edges[t as usize];
+                e.map(|e| {
+                    let o = topology.other_triangle(e, t);
+                    if o == crate::mesh::topology::NONE {
+                        return u32::MAX;
+                    }
+                    let ev = topology.edges[e as usize];
+                    *mesh.triangles[o as usize]
+                        .iter()
+                        .find(|&&v| v != ev[0] && v != ev[1])
+                        .expect("a triangle has a third vertex")
+                })
+            })
+            .collect();
         let mut sim = Simulator {
+            hinge,
             params,
             triangles: mesh.triangles.clone(),
             uv_triangles: uv.triangles.clone(),
@@ -205,6 +236,7 @@ impl Simulator {
             x: mesh.positions.clone(),
             v: vec![Vec3::zeros(); n],
             pinned: vec![false; n],
+            pin_targets: vec![None; n],
             obstacles: Obstacles::default(),
             bend_base: Vec::new(),
             pattern,
@@ -316,7 +348,22 @@ impl Simulator {
         *p = pinned;
         if pinned {
             self.v[v as usize] = Vec3::zeros();
+        } else {
+            self.pin_targets[v as usize] = None;
         }
+        Ok(())
+    }
+
+    /// Moves pinned vertex `v` linearly to `target` during the next step (animated pins, user
+    /// manipulation). The target is kept until reached (a stalled step does not reach it).
+    pub fn set_pin_target(&mut self, v: u32, target: Vec3) -> Result<()> {
+        if !self.pinned.get(v as usize).copied().unwrap_or(false) {
+            return Err(Error::Parameter(format!(
+                "pin target: vertex {v} is not pinned"
+            )));
+        }
+        check_vectors("pin target", &[target], 1)?;
+        self.pin_targets[v as usize] = Some(target);
         Ok(())
     }
 
@@ -394,7 +441,11 @@ impl Simulator {
             .map(|(t, r)| {
                 stretch_terms(
                     r,
-                    [&self.x[t[0] as usize], &self.x[t[1] as usize], &self.x[t[2] as usize]],
+                    [
+                        &self.x[t[0] as usize],
+                        &self.x[t[1] as usize],
+                        &self.x[t[2] as usize],
+                    ],
                     p.stretch_stiffness,
                     p.shear_stiffness,
                 )
@@ -472,8 +523,16 @@ impl Simulator {
             .iter()
             .map(|&pin| if pin { Filter::Fixed } else { Filter::Free })
             .collect();
+        // Pinned vertices: prescribed velocity (towards their target, else zero).
         let z: Vec<Vec3> = (0..n)
-            .map(|i| if self.pinned[i] { -self.v[i] } else { Vec3::zeros() })
+            .map(|i| {
+                if self.pinned[i] {
+                    let vp = self.pin_targets[i].map_or(Vec3::zeros(), |t| (t - self.x[i]) / h);
+                    vp - self.v[i]
+                } else {
+                    Vec3::zeros()
+                }
+            })
             .collect();
         let t1 = Instant::now();
         let mut dv = self.dv_prev.clone();
@@ -498,7 +557,13 @@ impl Simulator {
         self.dv_prev = dv;
         let t2 = Instant::now();
         let inv_mass: Vec<f64> = (0..n)
-            .map(|i| if self.pinned[i] { 0.0 } else { 1.0 / self.mass[i] })
+            .map(|i| {
+                if self.pinned[i] {
+                    0.0
+                } else {
+                    1.0 / self.mass[i]
+                }
+            })
             .collect();
         let collisions = if p.collisions {
             let scene = Scene {
@@ -506,6 +571,7 @@ impl Simulator {
                 h,
                 triangles: &self.triangles,
                 edges: &self.topology.edges,
+                hinge: &self.hinge,
                 obstacles: &self.obstacles,
                 inv_mass: &inv_mass,
                 friction: p.friction,
@@ -518,6 +584,7 @@ impl Simulator {
                 CollisionSettings {
                     max_impulse_iterations: p.max_impulse_iterations,
                     max_zone_iterations: p.max_zone_iterations,
+                    proximity: p.proximity,
                     rebuild: self.steps % collision::broad::REBUILD_EVERY == 0,
                 },
                 &mut self.broad,
@@ -528,6 +595,12 @@ impl Simulator {
         let t3 = Instant::now();
         for i in 0..n {
             self.x[i] += v[i] * h;
+            if let Some(t) = self.pin_targets[i] {
+                if (self.x[i] - t).norm() <= 1e-12 * (1.0 + t.norm()) {
+                    self.x[i] = t;
+                    self.pin_targets[i] = None;
+                }
+            }
         }
         self.v = v;
         self.obstacles.advance();

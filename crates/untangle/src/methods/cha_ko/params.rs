@@ -129,6 +129,7 @@ mod tests {
         assert_eq!(p.level_cap(), 15);
         let half = Params {
             gamma: 0.5,
+            max_level: 100,
             ..Params::default()
         };
         assert_eq!(half.level_cap(), 19);

@@ -145,13 +145,16 @@ impl BroadPhase {
                     })
                     .collect::<Vec<_>>(),
             );
-            out.extend(self.edge.cross_pairs(&self.obs_edge, |i, j, o: &mut Vec<Pair>| {
-                o.push(Pair {
-                    kind: PairKind::EdgeObstacleEdge,
-                    a: i,
-                    b: j,
-                })
-            }));
+            out.extend(
+                self.edge
+                    .cross_pairs(&self.obs_edge, |i, j, o: &mut Vec<Pair>| {
+                        o.push(Pair {
+                            kind: PairKind::EdgeObstacleEdge,
+                            a: i,
+                            b: j,
+                        })
+                    }),
+            );
         }
         out
     }

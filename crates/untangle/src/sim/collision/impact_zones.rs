@@ -16,6 +16,9 @@ pub struct Zones {
     in_zone: Vec<bool>,
     anchor_sum: Vec<Vec3>,
     anchor_count: Vec<u32>,
+    /// Per zone root: whether the zone moves rigidly (false when pinned vertices with different
+    /// prescribed velocities are in it; its pairs are then still tested).
+    rigid: Vec<bool>,
 }
 
 impl Zones {
@@ -26,6 +29,7 @@ impl Zones {
             in_zone: vec![false; n],
             anchor_sum: vec![Vec3::zeros(); n],
             anchor_count: vec![0; n],
+            rigid: vec![true; n],
         }
     }
 
@@ -49,17 +53,28 @@ impl Zones {
 
     /// Whether all four nodes are cloth vertices of one zone.
     pub fn same_zone(&self, nodes: &[u32; 4]) -> bool {
-        if nodes.iter().any(|&n| n & OBSTACLE != 0 || !self.in_zone[n as usize]) {
+        if nodes
+            .iter()
+            .any(|&n| n & OBSTACLE != 0 || !self.in_zone[n as usize])
+        {
             return false;
         }
         let r = self.find(nodes[0]);
-        nodes[1..].iter().all(|&n| self.find(n) == r)
+        self.rigid[r as usize] && nodes[1..].iter().all(|&n| self.find(n) == r)
     }
 
     /// Merges the cloth nodes of a colliding pair into one zone; obstacle nodes anchor it.
     pub fn merge(&mut self, scene: &Scene, v: &[Vec3], nodes: &[u32; 4]) {
-        let cloth: Vec<u32> = nodes.iter().copied().filter(|n| n & OBSTACLE == 0).collect();
-        let obst: Vec<u32> = nodes.iter().copied().filter(|n| n & OBSTACLE != 0).collect();
+        let cloth: Vec<u32> = nodes
+            .iter()
+            .copied()
+            .filter(|n| n & OBSTACLE == 0)
+            .collect();
+        let obst: Vec<u32> = nodes
+            .iter()
+            .copied()
+            .filter(|n| n & OBSTACLE != 0)
+            .collect();
         if cloth.is_empty() {
             return;
         }
@@ -110,8 +125,11 @@ impl Zones {
     }
 
     /// Replaces the velocities of every zone by its rigid motion.
-    pub fn rigidify(&self, scene: &Scene, v: &mut [Vec3]) {
+    pub fn rigidify(&mut self, scene: &Scene, v: &mut [Vec3]) {
         for zone in self.groups() {
+            let root = self.find(zone[0]) as usize;
+            self.rigid[root] = true;
+            let mut first_pinned: Option<Vec3> = None;
             let (mut pinned, mut pinned_count) = (Vec3::zeros(), 0u32);
             let (mut anchor, mut anchors) = (Vec3::zeros(), 0u32);
             for &i in &zone {
@@ -119,6 +137,11 @@ impl Zones {
                 if scene.inv_mass[i] == 0.0 {
                     pinned += v[i];
                     pinned_count += 1;
+                    match first_pinned {
+                        None => first_pinned = Some(v[i]),
+                        Some(f) if f != v[i] => self.rigid[root] = false,
+                        _ => {}
+                    }
                 }
                 anchor += self.anchor_sum[i];
                 anchors += self.anchor_count[i];
@@ -155,16 +178,18 @@ impl Zones {
                 l += r.cross(&v[i as usize]) * m;
                 inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * m;
             }
-            let omega = inertia
-                .try_inverse()
-                .filter(|m| m.iter().all(|x| x.is_finite()))
-                .map(|inv| inv * l)
-                .unwrap_or_else(|| {
-                    inertia
-                        .svd(true, true)
-                        .solve(&l, 1e-12 * inertia.norm())
-                        .unwrap_or_else(|_| Vec3::zeros())
-                });
+            // omega = I^+ L with a relative cut-off: directions of (near) zero inertia (a zone
+            // of collinear vertices) get no spin, instead of an arbitrary huge one.
+            let eig = nalgebra::SymmetricEigen::new(inertia);
+            let top = eig.eigenvalues.iter().fold(0.0f64, |m, &e| m.max(e));
+            let mut omega = Vec3::zeros();
+            for k in 0..3 {
+                let e = eig.eigenvalues[k];
+                if e > 1e-6 * top && e > 0.0 {
+                    let axis: Vec3 = eig.eigenvectors.column(k).into();
+                    omega += axis * (axis.dot(&l) / e);
+                }
+            }
             let vc = p / total;
             for &i in &zone {
                 v[i as usize] = vc + omega.cross(&(scene.x0[i as usize] - c));

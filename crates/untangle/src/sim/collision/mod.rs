@@ -12,7 +12,6 @@
 pub mod broad;
 pub mod impact_zones;
 pub mod impulses;
-pub mod kernels;
 pub mod proximity;
 
 use super::obstacle::Obstacles;
@@ -67,6 +66,11 @@ pub struct Scene<'a> {
     pub triangles: &'a [[u32; 3]],
     /// Cloth edges.
     pub edges: &'a [[u32; 2]],
+    /// Per cloth triangle, the vertex opposite each of its edges in the neighbouring triangle
+    /// (`u32::MAX` on the boundary). Such hinge pairs ARE handled like any other: skipping them
+    /// lets the vertex pass through the triangle and drag its other triangles (which share only
+    /// a vertex with it) into an intersection.
+    pub hinge: &'a [[u32; 3]],
     /// Obstacles.
     pub obstacles: &'a Obstacles,
     /// Inverse mass per cloth vertex (0 for pinned vertices).
@@ -217,16 +221,20 @@ pub struct Closest {
 /// Closest points of a vertex-triangle (`vt`) or edge-edge pair with node positions `x`.
 pub fn closest(x: &[Vec3; 4], vt: bool) -> Closest {
     let (d2, w, fallback) = if vt {
-        let (d2, b) = kernels::point_triangle(&x[0], &x[1], &x[2], &x[3]);
+        let (d2, b) = crate::geom::distance::point_triangle(&x[0], &x[1], &x[2], &x[3]);
         let n = (x[2] - x[1]).cross(&(x[3] - x[1]));
         (d2, [1.0, -b[0], -b[1], -b[2]], n)
     } else {
-        let (d2, s, t) = kernels::segment_segment(&x[0], &x[1], &x[2], &x[3]);
+        let (d2, s, t) = crate::geom::distance::segment_segment(&x[0], &x[1], &x[2], &x[3]);
         let (e, f) = (x[1] - x[0], x[3] - x[2]);
         let mut n = e.cross(&f);
         if n.norm_squared() <= 1e-24 * e.norm_squared() * f.norm_squared() {
             // Parallel edges: any direction orthogonal to the first.
-            let a = if e.x.abs() < e.y.abs() { Vec3::x() } else { Vec3::y() };
+            let a = if e.x.abs() < e.y.abs() {
+                Vec3::x()
+            } else {
+                Vec3::y()
+            };
             n = e.cross(&a);
         }
         (d2, [1.0 - s, s, -(1.0 - t), -t], n)
@@ -283,7 +291,6 @@ pub fn impulse(
     Some([0, 1, 2, 3].map(|k| jv * (w[k] * im[k])))
 }
 
-
 /// Iteration caps and settings of the collision handling.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CollisionSettings {
@@ -291,6 +298,8 @@ pub struct CollisionSettings {
     pub max_impulse_iterations: usize,
     /// Impact-zone passes before the fail-safe stops all cloth motion for the step.
     pub max_zone_iterations: usize,
+    /// Run proximity repulsion first.
+    pub proximity: bool,
     /// Rebuild the broad-phase hierarchies this step (else refit).
     pub rebuild: bool,
 }
@@ -360,13 +369,32 @@ pub fn handle(
     rep.candidates = cands.len();
     rep.timing.broad += ms(t);
     let t = Instant::now();
-    rep.proximity_impulses = proximity::repel(scene, v, &cands, policy);
+    if settings.proximity {
+        rep.proximity_impulses = proximity::repel(scene, v, &cands, policy);
+    }
     rep.timing.proximity += ms(t);
 
+    // Only pairs with a vertex whose velocity changed since the last CCD pass, or that
+    // collided in it, can collide now; everything else was already found free.
+    let n = scene.x0.len();
+    let mut changed = vec![true; n];
+    let mut previous: Vec<Pair> = Vec::new();
+    let select = |cands: Vec<Pair>, changed: &[bool], previous: &[Pair]| -> Vec<Pair> {
+        cands
+            .into_iter()
+            .filter(|p| {
+                scene
+                    .nodes(*p)
+                    .iter()
+                    .any(|&k| k & OBSTACLE == 0 && changed[k as usize])
+                    || previous.binary_search(p).is_ok()
+            })
+            .collect()
+    };
     for it in 0..settings.max_impulse_iterations {
         let t = Instant::now();
         broad.update(scene, v, margin, false);
-        let cands = broad.candidates(scene, v, margin);
+        let cands = select(broad.candidates(scene, v, margin), &changed, &previous);
         rep.timing.broad += ms(t);
         let t = Instant::now();
         let cols = impulses::detect(scene, v, &cands, policy, &no_skip);
@@ -378,19 +406,25 @@ pub fn handle(
             rep.timing.impulses += ms(t);
             return rep;
         }
+        let before = v.to_vec();
         rep.impulses += impulses::resolve(scene, v, &cols);
+        for i in 0..n {
+            changed[i] = v[i] != before[i];
+        }
+        previous = cols.iter().map(|c| c.pair).collect();
+        previous.sort_unstable();
         rep.timing.impulses += ms(t);
     }
 
     let t = Instant::now();
-    let mut zones = impact_zones::Zones::new(scene.x0.len());
+    let mut zones = impact_zones::Zones::new(n);
     let mut done = false;
     for _ in 0..settings.max_zone_iterations {
         let tb = Instant::now();
         broad.update(scene, v, margin, false);
-        let cands = broad.candidates(scene, v, margin);
+        let cands = select(broad.candidates(scene, v, margin), &changed, &previous);
         rep.timing.broad += ms(tb);
-        let skip = |n: &[u32; 4]| zones.same_zone(n);
+        let skip = |nodes: &[u32; 4]| zones.same_zone(nodes);
         let cols = impulses::detect(scene, v, &cands, policy, &skip);
         rep.iterations += 1;
         rep.zone_iterations += 1;
@@ -401,7 +435,13 @@ pub fn handle(
         for c in &cols {
             zones.merge(scene, v, &scene.nodes(c.pair));
         }
+        let before = v.to_vec();
         zones.rigidify(scene, v);
+        for i in 0..n {
+            changed[i] = v[i] != before[i];
+        }
+        previous = cols.iter().map(|c| c.pair).collect();
+        previous.sort_unstable();
     }
     let (count, verts) = zones.stats();
     rep.impact_zones = count;

@@ -97,7 +97,10 @@ mod tests {
             let e = s.energy(&x, 1.0);
             // Discrete shells: 3 |e|^2 theta^2 / (A0 + A1), halved; A0 = 0.4, A1 = 0.35.
             let expect = 0.5 * 3.0 * theta * theta / 0.75;
-            assert!((e - expect).abs() < 0.01 * expect + 1e-12, "{theta}: {e} vs {expect}");
+            assert!(
+                (e - expect).abs() < 0.01 * expect + 1e-12,
+                "{theta}: {e} vs {expect}"
+            );
         }
     }
 

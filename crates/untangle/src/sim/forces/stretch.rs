@@ -61,7 +61,12 @@ pub struct StretchTerms {
 pub const BLOCKS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
 /// Evaluates the stretch/shear energy of a triangle with corners `x` (stiffnesses in N/m).
-pub fn stretch_terms(rest: &TriangleRest, x: [&Vec3; 3], k_stretch: f64, k_shear: f64) -> StretchTerms {
+pub fn stretch_terms(
+    rest: &TriangleRest,
+    x: [&Vec3; 3],
+    k_stretch: f64,
+    k_shear: f64,
+) -> StretchTerms {
     let (a, b) = (&rest.a, &rest.b);
     let wu = x[0] * a[0] + x[1] * a[1] + x[2] * a[2];
     let wv = x[0] * b[0] + x[1] * b[1] + x[2] * b[2];
@@ -72,8 +77,8 @@ pub fn stretch_terms(rest: &TriangleRest, x: [&Vec3; 3], k_stretch: f64, k_shear
     let area = rest.area;
     let energy = area * (0.5 * k_stretch * (cu * cu + cv * cv) + 0.5 * k_shear * s * s);
     let g: [Vec3; 3] = [0, 1, 2].map(|i| wv * a[i] + wu * b[i]);
-    let gradient =
-        [0, 1, 2].map(|i| area * (k_stretch * (nu * (cu * a[i]) + nv * (cv * b[i])) + k_shear * s * g[i]));
+    let gradient = [0, 1, 2]
+        .map(|i| area * (k_stretch * (nu * (cu * a[i]) + nv * (cv * b[i])) + k_shear * s * g[i]));
     let proj = |n: &Vec3, c: f64, l: f64| {
         let nn = n * n.transpose();
         if c > 0.0 {
@@ -148,9 +153,17 @@ mod tests {
     /// finite differences of the gradient.
     #[test]
     fn hessian_matches_finite_differences_when_stretched_without_shear() {
-        let uv = [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)];
+        let uv = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(0.0, 1.0),
+        ];
         let rest = TriangleRest::new(&uv[0], &uv[1], &uv[2]).unwrap();
-        let xs = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.3, 0.0, 0.0), Vec3::new(0.0, 1.2, 0.0)];
+        let xs = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.3, 0.0, 0.0),
+            Vec3::new(0.0, 1.2, 0.0),
+        ];
         let t = stretch_terms(&rest, [&xs[0], &xs[1], &xs[2]], 700.0, 0.0);
         let h = 1e-6;
         for (k, &(i, j)) in BLOCKS.iter().enumerate() {
@@ -163,7 +176,10 @@ mod tests {
                 let gm = stretch_terms(&rest, [&m[0], &m[1], &m[2]], 700.0, 0.0).gradient[i];
                 let col = (gp - gm) / (2.0 * h);
                 for r in 0..3 {
-                    assert!((col[r] - t.hessian[k][(r, d)]).abs() < 1e-4, "block {k} ({r},{d})");
+                    assert!(
+                        (col[r] - t.hessian[k][(r, d)]).abs() < 1e-4,
+                        "block {k} ({r},{d})"
+                    );
                 }
             }
         }

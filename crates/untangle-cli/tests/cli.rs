@@ -1,0 +1,200 @@
+//! End-to-end tests of the `untangle` binary: exit codes, messages, files.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn untangle(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_untangle"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+const CLEAN: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
+
+#[test]
+fn check_exit_codes_summary_and_json() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(d.path().join("clean.obj"), CLEAN).unwrap();
+    let o = untangle(&["check", "clean.obj"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("no intersections"));
+
+    let o = untangle(&["scene", "cross", "-o", "cross.obj"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = untangle(
+        &[
+            "check",
+            "cross.obj",
+            "--json",
+            "r.json",
+            "--colored-obj",
+            "c.obj",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stdout(&o).contains("1 CROSS"), "{}", stdout(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.path().join("r.json")).unwrap()).unwrap();
+    for key in [
+        "triangles",
+        "vertices",
+        "intersecting_triangle_pairs",
+        "intersecting_triangles",
+        "paths",
+        "red_vertices",
+        "red_triangles",
+        "timing_ms",
+    ] {
+        assert!(r.get(key).is_some(), "report has {key}");
+    }
+    assert!(r["timing_ms"]["total"].is_number());
+    let paths = r["paths"].as_array().unwrap();
+    assert_eq!(paths.len(), 2);
+    for p in paths {
+        for key in ["kind", "loop_vertices", "corresponds_to", "segments"] {
+            assert!(p.get(key).is_some(), "path has {key}");
+        }
+    }
+    let tris = r["intersecting_triangles"].as_array().unwrap();
+    assert!(
+        tris.windows(2).all(|w| w[0].as_u64() < w[1].as_u64()),
+        "sorted"
+    );
+    assert_eq!(r["intersecting_triangle_pairs"].as_u64(), Some(23));
+    let colored = std::fs::read_to_string(d.path().join("c.obj")).unwrap();
+    assert!(
+        colored
+            .lines()
+            .any(|l| l.starts_with("v ") && l.split_whitespace().count() == 7),
+        "vertex colours"
+    );
+    assert!(colored.contains("vt "), "uv kept");
+
+    // Quiet: nothing on stdout, same exit code.
+    let o = untangle(&["--quiet", "check", "cross.obj"], d.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stdout(&o).is_empty());
+}
+
+#[test]
+fn report_does_not_depend_on_threads() {
+    let d = tempfile::tempdir().unwrap();
+    untangle(
+        &["scene", "exploded", "--seed", "7", "-o", "e.obj"],
+        d.path(),
+    );
+    let mut reports = Vec::new();
+    for t in ["1", "2"] {
+        let json = format!("r{t}.json");
+        let o = untangle(
+            &["--threads", t, "check", "e.obj", "--json", &json],
+            d.path(),
+        );
+        assert_eq!(o.status.code(), Some(1));
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.path().join(&json)).unwrap()).unwrap();
+        v.as_object_mut().unwrap().remove("timing_ms");
+        reports.push(v);
+    }
+    assert_eq!(reports[0], reports[1]);
+}
+
+#[test]
+fn bad_input_gives_one_line_and_exit_2() {
+    let d = tempfile::tempdir().unwrap();
+    let cases: &[(&str, &str, &str)] = &[
+        (
+            "nan.obj",
+            "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            "nan.obj:1: non-finite number",
+        ),
+        (
+            "range.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
+            "range.obj:4: vertex index 9 out of range",
+        ),
+        (
+            "zero.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
+            "zero.obj:4: vertex index 0",
+        ),
+        (
+            "degenerate.obj",
+            "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n",
+            "degenerate.obj:4: degenerate face",
+        ),
+        (
+            "nonmanifold.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n",
+            "non-manifold edge",
+        ),
+        ("nofaces.obj", "v 0 0 0\n", "nofaces.obj: no faces"),
+        ("empty.obj", "", "empty.obj: no faces"),
+        (
+            "mixeduv.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nf 1/1 2/1 3/1\nf 2 4 3\n",
+            "mixed uv",
+        ),
+    ];
+    for (name, text, want) in cases {
+        std::fs::write(d.path().join(name), text).unwrap();
+        let o = untangle(&["check", name, "--json", "out.json"], d.path());
+        assert_eq!(o.status.code(), Some(2), "{name}");
+        let e = stderr(&o);
+        assert!(e.contains(want), "{name}: got '{e}'");
+        assert_eq!(e.trim_end().lines().count(), 1, "{name}: one line: '{e}'");
+        assert!(
+            !d.path().join("out.json").exists(),
+            "{name}: no partial output"
+        );
+    }
+    let o = untangle(&["check", "missing.obj"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("missing.obj"));
+    std::fs::create_dir(d.path().join("adir")).unwrap();
+    let o = untangle(&["check", "adir"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("adir"));
+    let o = untangle(&["check"], d.path());
+    assert_eq!(o.status.code(), Some(2), "usage error");
+}
+
+#[test]
+fn outputs_never_overwrite_inputs() {
+    let d = tempfile::tempdir().unwrap();
+    std::fs::write(d.path().join("in.obj"), CLEAN).unwrap();
+    for flag in ["--json", "--colored-obj"] {
+        let o = untangle(&["check", "in.obj", flag, "in.obj"], d.path());
+        assert_eq!(o.status.code(), Some(2), "{flag}");
+        assert!(stderr(&o).contains("refusing to overwrite"));
+        assert_eq!(
+            std::fs::read_to_string(d.path().join("in.obj")).unwrap(),
+            CLEAN
+        );
+    }
+    // Output into a folder that does not exist: clear error, nothing written.
+    let o = untangle(&["check", "in.obj", "--json", "nowhere/r.json"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("nowhere/r.json"));
+}
+
+#[test]
+fn demo_writes_its_files() {
+    let d = tempfile::tempdir().unwrap();
+    let o = untangle(&["demo", "--out", "demo"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    for f in ["report.json", "colored.obj", "input.obj"] {
+        assert!(d.path().join("demo").join(f).is_file(), "{f}");
+    }
+}

@@ -1,0 +1,318 @@
+//! End-to-end tests of the layered untangling on scenes with analytic answers.
+
+use super::field::LayerField;
+use super::layers::{untangle_layers, verify, FieldParams, GarmentInput, Params};
+use super::operators::{field_vec, Operator};
+use super::projection::{project_layer, Composer, Layer, ProjectionParams};
+use super::shapes::{cylinder_mesh, sphere_mesh, CylinderField, SphereField};
+use super::thickness;
+use crate::geom::Vec3;
+use crate::mesh::Topology;
+
+fn params() -> ProjectionParams {
+    ProjectionParams {
+        tolerance: 1e-7,
+        max_step: 0.05,
+        ..Default::default()
+    }
+}
+
+/// Independent oracle for concentric layers with exact distance fields `f_j = r − R_j` (all
+/// active): along the ray, `f̃(r) = r·1 − R + offsets` is a line in field space; the target radius
+/// of layer `i` is where that line meets a piece of `Z_i` (membership, not closest points).
+fn expected_radius(radii: &[f64], w: &[f64], t: &[f64], i: usize) -> f64 {
+    let n = radii.len();
+    let op = Operator::new(w, i).unwrap();
+    let off = thickness::offsets(i, t);
+    let mut found = Vec::new();
+    for piece in &op.pieces {
+        // Plane: Σ_{lo..=hi} w_j (r − R_j + off_j) = 0 (w_0 = ∞: r − R_0 + off_0 = 0).
+        let r = if w[piece.lo].is_infinite() {
+            radii[piece.lo] - off[piece.lo]
+        } else {
+            let (mut a, mut b) = (0.0, 0.0);
+            for j in piece.lo..=piece.hi {
+                a += w[j];
+                b += w[j] * (radii[j] - off[j]);
+            }
+            b / a
+        };
+        let x: Vec<f64> = (0..n).map(|j| r - radii[j] + off[j]).collect();
+        if piece.contains(&field_vec(&x), n, 1e-9) {
+            found.push(r);
+        }
+    }
+    assert!(!found.is_empty());
+    assert!(
+        found.iter().all(|r| (r - found[0]).abs() < 1e-9),
+        "{found:?}"
+    );
+    found[0]
+}
+
+fn sphere_scene(radii: &[f64], w: &[f64], t: &[f64], body: bool) {
+    let fields: Vec<SphereField> = radii
+        .iter()
+        .map(|&radius| SphereField {
+            centre: Vec3::zeros(),
+            radius,
+        })
+        .collect();
+    let layers: Vec<Layer> = fields
+        .iter()
+        .zip(w)
+        .zip(t)
+        .map(|((f, &weight), &thickness)| Layer {
+            field: f as &dyn LayerField,
+            weight,
+            thickness,
+        })
+        .collect();
+    let composer = Composer::new(&layers).unwrap();
+    let first = body as usize;
+    let mut radii_out = Vec::new();
+    let mut meshes = Vec::new();
+    for i in first..radii.len() {
+        let m = sphere_mesh(&format!("l{i}"), &Vec3::zeros(), radii[i], 24);
+        let topo = Topology::new(&m).unwrap();
+        let pr = project_layer(&composer, i, &m.positions, &topo, &params(), &|_| {});
+        let expect = expected_radius(radii, w, t, i);
+        for p in &pr.positions {
+            assert!(
+                (p.norm() - expect).abs() < 1e-5,
+                "layer {i}: {} vs {expect}",
+                p.norm()
+            );
+        }
+        assert_eq!(pr.unconverged, 0);
+        radii_out.push(expect);
+        meshes.push(crate::mesh::Mesh {
+            positions: pr.positions,
+            ..m
+        });
+    }
+    // Layers come out nested in order with the thickness rule between neighbours.
+    let body_r = body.then(|| radii[0]);
+    for k in 1..radii_out.len() {
+        let (i, j) = (first + k, first + k - 1);
+        assert!(radii_out[k] - radii_out[k - 1] >= 0.5 * (t[i] + t[j]) - 1e-6);
+    }
+    if let Some(br) = body_r {
+        assert!(radii_out[0] >= br + 0.5 * (t[0] + t[1]) - 1e-6);
+    }
+    let refs: Vec<&crate::mesh::Mesh> = meshes.iter().collect();
+    let pos: Vec<Vec<Vec3>> = meshes.iter().map(|m| m.positions.clone()).collect();
+    let body_mesh = body.then(|| sphere_mesh("body", &Vec3::zeros(), radii[0], 24));
+    let v = verify(body_mesh.as_ref(), &refs, &pos).unwrap();
+    assert!(v.is_clean(), "{v:?}");
+}
+
+#[test]
+fn two_inverted_spheres_meet_where_the_weights_say() {
+    // Inner layer (radius 1.0) is bigger than the outer one (0.9): full inversion.
+    for (w0, w1) in [(1.0, 1.0), (3.0, 1.0), (1.0, 4.0)] {
+        let (r0, r1, t0, t1) = (1.0, 0.9, 0.02, 0.04);
+        let d = 0.5 * (t0 + t1);
+        let a = (w0 * r0 + w1 * (r1 - d)) / (w0 + w1);
+        assert!((expected_radius(&[r0, r1], &[w0, w1], &[t0, t1], 0) - a).abs() < 1e-12);
+        assert!((expected_radius(&[r0, r1], &[w0, w1], &[t0, t1], 1) - (a + d)).abs() < 1e-12);
+        sphere_scene(&[r0, r1], &[w0, w1], &[t0, t1], false);
+    }
+}
+
+#[test]
+fn body_of_infinite_weight_never_moves() {
+    // Garment sphere inside the body sphere: it lands on the body's surface + t/2.
+    let t = [0.0, 0.03];
+    assert!((expected_radius(&[1.0, 0.8], &[f64::INFINITY, 1.0], &t, 1) - 1.015).abs() < 1e-12);
+    sphere_scene(&[1.0, 0.8], &[f64::INFINITY, 1.0], &t, true);
+    // Two garments both inside the body, in reversed order.
+    sphere_scene(
+        &[1.0, 0.9, 0.85],
+        &[f64::INFINITY, 1.0, 2.0],
+        &[0.0, 0.02, 0.01],
+        true,
+    );
+}
+
+#[test]
+fn many_nested_spheres_in_any_order() {
+    // Up to 9 layers (Fig. 9) with permuted radii, weights and thicknesses.
+    use rand::{seq::SliceRandom, Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    for n in [3usize, 5, 9] {
+        let mut radii: Vec<f64> = (0..n).map(|k| 1.0 + 0.03 * k as f64).collect();
+        radii.shuffle(&mut rng);
+        let w: Vec<f64> = (0..n).map(|_| rng.random_range(0.5..3.0)).collect();
+        let t: Vec<f64> = (0..n).map(|_| rng.random_range(0.0..0.02)).collect();
+        sphere_scene(&radii, &w, &t, false);
+    }
+}
+
+#[test]
+fn cylinders_with_limited_influence() {
+    // An outer tube smaller than the inner one but only influential for |z| < 0.5: the inner
+    // tube is pushed in only there.
+    let inner = CylinderField {
+        radius: 0.5,
+        half_height: 10.0,
+    };
+    let outer = CylinderField {
+        radius: 0.45,
+        half_height: 0.5,
+    };
+    let layers = [
+        Layer {
+            field: &inner,
+            weight: 1.0,
+            thickness: 0.01,
+        },
+        Layer {
+            field: &outer,
+            weight: 1.0,
+            thickness: 0.01,
+        },
+    ];
+    let composer = Composer::new(&layers).unwrap();
+    let m = cylinder_mesh("c", 0.5, 3.0, 48, 30, false);
+    let topo = Topology::new(&m).unwrap();
+    let pp = ProjectionParams {
+        relaxation: 0.0,
+        ..params()
+    };
+    let pr = project_layer(&composer, 0, &m.positions, &topo, &pp, &|_| {});
+    let expect = (0.5 + 0.45 - 0.01) / 2.0;
+    for (p, q) in pr.positions.iter().zip(&m.positions) {
+        let r = (p.x * p.x + p.y * p.y).sqrt();
+        if q.z.abs() < 0.45 {
+            assert!((r - expect).abs() < 1e-5, "{r} at z {}", q.z);
+        } else if q.z.abs() > 0.55 {
+            assert!(
+                (r - 0.5).abs() < 1e-12,
+                "untouched outside the influence region"
+            );
+        }
+    }
+}
+
+#[test]
+fn hrbf_spheres_meet_the_thickness_rule() {
+    // Full pipeline: HRBF fields of sphere meshes, grid cache, projection, verification and the
+    // Table 3 analogue (separation within 2% of the thickness rule).
+    let outer = sphere_mesh("outer", &Vec3::zeros(), 0.45, 32);
+    let inner = sphere_mesh("inner", &Vec3::new(0.0, 0.0, 0.0), 0.5, 32);
+    let garments = [
+        GarmentInput {
+            mesh: &inner,
+            thickness: 0.01,
+            weight: 1.0,
+        },
+        GarmentInput {
+            mesh: &outer,
+            thickness: 0.01,
+            weight: 1.0,
+        },
+    ];
+    let p = Params {
+        fields: FieldParams {
+            samples: 500,
+            max_nodes: 150_000,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let out = untangle_layers(None, &garments, &p, &|_| {}).unwrap();
+    let expect = (0.5 + 0.45 - 0.01) / 2.0;
+    for (k, e) in [(0, expect), (1, expect + 0.01)] {
+        let mean: f64 =
+            out.positions[k].iter().map(|p| p.norm()).sum::<f64>() / out.positions[k].len() as f64;
+        assert!((mean - e).abs() < 2e-3, "layer {k}: {mean} vs {e}");
+    }
+    let md = super::separation::MeshDistance::new(&out.positions[0], &inner.triangles);
+    let d: Vec<f64> = out.positions[1]
+        .iter()
+        .filter_map(|p| md.distance_within(p, 0.05))
+        .collect();
+    let s = super::separation::summarize(1, "0".into(), 0.01, d);
+    eprintln!("{s:?} {:?}", out.reports);
+    eprintln!(
+        "timing {:?}",
+        out.reports.iter().map(|r| r.field_ms).collect::<Vec<_>>()
+    );
+    assert!(s.relative_error < 0.02, "{s:?}");
+    let v = verify(None, &[&inner, &outer], &out.positions).unwrap();
+    assert!(v.is_clean(), "{v:?}");
+}
+
+#[test]
+fn arcsim_pants_and_tshirt_over_the_body() {
+    let shared = std::env::var_os("UNTANGLE_SHARED")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| {
+            std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared"))
+        });
+    if !shared.join("data/arcsim/meshes/tshirt.obj").exists() {
+        eprintln!(
+            "skipping: ARCSim meshes not found under {}",
+            shared.display()
+        );
+        return;
+    }
+    let (body, garments) =
+        crate::scenes::outfit::arcsim_outfit(&shared, &["pants3", "tshirt"], 2).unwrap();
+    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
+    let before: Vec<Vec<Vec3>> = garments.iter().map(|m| m.positions.clone()).collect();
+    let v0 = verify(Some(&body), &refs, &before).unwrap();
+    assert!(
+        v0.between_layers > 0 && v0.with_body > 0,
+        "the scene starts tangled"
+    );
+    let inputs: Vec<GarmentInput> = garments
+        .iter()
+        .map(|m| GarmentInput {
+            mesh: m,
+            thickness: 0.01,
+            weight: 1.0,
+        })
+        .collect();
+    let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
+    let v = verify(Some(&body), &refs, &out.positions).unwrap();
+    eprintln!("arcsim pants3+tshirt: before {v0:?}, after {v:?}");
+    assert!(v.is_clean(), "{v:?}");
+}
+
+#[test]
+fn same_result_for_one_and_two_threads() {
+    let outer = sphere_mesh("outer", &Vec3::new(0.01, 0.0, 0.0), 0.45, 16);
+    let inner = sphere_mesh("inner", &Vec3::zeros(), 0.5, 16);
+    let garments = [
+        GarmentInput {
+            mesh: &inner,
+            thickness: 0.01,
+            weight: 2.0,
+        },
+        GarmentInput {
+            mesh: &outer,
+            thickness: 0.02,
+            weight: 1.0,
+        },
+    ];
+    let p = Params {
+        fields: FieldParams {
+            samples: 150,
+            max_nodes: 30_000,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| untangle_layers(None, &garments, &p, &|_| {}).unwrap())
+    };
+    let (a, b) = (run(1), run(2));
+    assert_eq!(a.positions, b.positions);
+    assert!(a.reports.iter().all(|r| r.moved > 0));
+}

@@ -1,0 +1,100 @@
+//! Tests on third-party data in `../shared/data` (skipped with a note when it is absent).
+
+mod common;
+
+use common::*;
+use untangle::geom::Vec3;
+use untangle::mesh::{obj::read_obj, subdivide::subdivide_n, Garment};
+
+/// The seven path-type cases of Untangling26 (Apache-2.0): file name, kind, exact pair count
+/// (from the data set's README).
+const UNITS: [(&str, &str, usize); 7] = [
+    ("unit_BBII.obj", "BBII", 1),
+    ("unit_BIBI.obj", "BIBI", 1),
+    ("unit_BLI.obj", "BLI", 1),
+    ("unit_Closed.obj", "CLOSED", 3),
+    ("unit_Cross.obj", "CROSS", 2),
+    ("unit_Eight.obj", "EIGHT", 3),
+    ("unit_LL.obj", "LL", 2),
+];
+
+#[test]
+fn untangling26_units_have_their_kind_and_pair_count() {
+    let Some(shared) = shared() else { return };
+    for (file, kind, pairs) in UNITS {
+        let m = read_obj(&shared.join("data/untangling26-units").join(file)).unwrap();
+        let (_, _, a) = analyse_checked(&[m]);
+        assert_eq!(kinds(&a), vec![(kind.to_string(), 1)], "{file}");
+        assert_eq!(a.segments.len(), pairs, "{file}");
+    }
+}
+
+/// As the upstream project runs them: subdivided three times (1-to-4 midpoint), rotated by
+/// (-30, 0, -30) degrees and scaled by 0.2. Subdivision puts many vertices exactly on other
+/// triangles' planes, so this exercises the tie rule; the world surface is unchanged, so the
+/// kind must be too.
+#[test]
+fn untangling26_units_keep_their_kind_when_subdivided_rotated_and_scaled() {
+    let Some(shared) = shared() else { return };
+    let (ax, az) = (-30f64.to_radians(), -30f64.to_radians());
+    let rx = nalgebra::Rotation3::from_axis_angle(&Vec3::x_axis(), ax);
+    let rz = nalgebra::Rotation3::from_axis_angle(&Vec3::z_axis(), az);
+    for (file, kind, _) in UNITS {
+        let m = read_obj(&shared.join("data/untangling26-units").join(file)).unwrap();
+        let mut s = subdivide_n(&m, 3);
+        for p in &mut s.positions {
+            *p = (rz * rx * *p) * 0.2;
+        }
+        let (_, _, a) = analyse_checked(&[s]);
+        assert_eq!(kinds(&a), vec![(kind.to_string(), 1)], "{file} subdivided");
+    }
+}
+
+#[test]
+fn tshirt_has_six_panels_and_ninety_seam_vertices() {
+    let Some(shared) = shared() else { return };
+    let m = read_obj(&shared.join("data/arcsim/meshes/tshirt.obj")).unwrap();
+    let g = Garment::new(m).unwrap();
+    assert_eq!(g.mesh.positions.len(), 330);
+    assert_eq!(g.num_panels, 6);
+    assert_eq!(g.num_seam_vertices(), 90);
+    let expected = [
+        ("dress3.obj", 12, 126),
+        ("pants3.obj", 4, 59),
+        ("jacket.obj", 6, 34),
+        ("dress4.obj", 5, 22),
+    ];
+    for (f, panels, seams) in expected {
+        let g =
+            Garment::new(read_obj(&shared.join("data/arcsim/meshes").join(f)).unwrap()).unwrap();
+        assert_eq!(
+            (g.num_panels, g.num_seam_vertices()),
+            (panels, seams),
+            "{f}"
+        );
+    }
+}
+
+#[test]
+fn arcsim_meshes_read_and_analyse() {
+    let Some(shared) = shared() else { return };
+    let dir = shared.join("data/arcsim/meshes");
+    let mut n = 0;
+    for f in [
+        "tshirt.obj",
+        "dress3.obj",
+        "pants3.obj",
+        "jacket.obj",
+        "dress4.obj",
+        "sleeve.obj",
+        "square.obj",
+        "flag.obj",
+        "female-objs/body0000.obj",
+    ] {
+        let m = read_obj(&dir.join(f)).unwrap();
+        let (am, pos, a) = analyse_checked(&[m]);
+        assert_eq!(a.segments.len(), brute_pairs(&am, &pos).len(), "{f}");
+        n += 1;
+    }
+    assert_eq!(n, 9);
+}
