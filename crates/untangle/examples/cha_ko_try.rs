@@ -13,14 +13,11 @@ fn main() {
         .nth(3)
         .map(|s| s.parse().unwrap())
         .unwrap_or(1);
-    let g = if which == "closed" {
-        let scene = untangle::scenes::closed(n);
-        let (am2, pos) = AnalysisMesh::new(&[
-            (&scene.meshes[0], ObjectKind::Cloth),
-            (&scene.meshes[1], ObjectKind::Cloth),
-        ])
-        .unwrap();
-        Garment::new(am2.merged(&pos, &[&scene.meshes[0], &scene.meshes[1]])).unwrap()
+    let g = if which != "exploded" {
+        let scene = untangle::scenes::by_name(&which, (n > 0).then_some(n), seed).unwrap();
+        let parts: Vec<_> = scene.meshes.iter().map(|m| (m, ObjectKind::Cloth)).collect();
+        let (am2, pos) = AnalysisMesh::new(&parts).unwrap();
+        Garment::new(am2.merged(&pos, &scene.meshes.iter().collect::<Vec<_>>())).unwrap()
     } else {
         Garment::new(untangle::scenes::exploded::exploded(seed, n).meshes[0].clone()).unwrap()
     };

@@ -69,6 +69,10 @@ pub struct Args {
     /// Disable the fallbacks used when no fan passes the triangle inversion test.
     #[arg(long)]
     pub no_fallback: bool,
+    /// Leave BLI paths uncoloured (the paper's method; by default their cone regions, Wicke's
+    /// heuristic, are coloured red and pulled out like any other region).
+    #[arg(long)]
+    pub no_bli_regions: bool,
 }
 
 /// Runs `fix`; exit code 0 when the output is free of intersections, 1 otherwise.
@@ -106,6 +110,7 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
     p.sim.gravity = Vec3::new(0.0, -args.gravity, 0.0);
     p.max_steps = args.max_steps;
     p.stuck_steps = args.stuck_steps;
+    p.analysis.bli_regions_red = !args.no_bli_regions;
     let mut resolver = Resolver::new(&garment, p)?;
     if let Some(b) = &args.body {
         let body = obj::read_obj(b)?;

@@ -15,7 +15,7 @@
 
 use super::report::{FinesseStats, Stall, UvUpdateReport};
 use super::{ChaKo, Params};
-use crate::analysis::{analyze, AnalysisMesh, Coloring};
+use crate::analysis::{analyze_with, AnalysisMesh, Coloring};
 use crate::error::Result;
 use crate::geom::Vec3;
 use crate::mesh::Garment;
@@ -36,6 +36,11 @@ pub struct ResolveParams {
     pub stuck_steps: usize,
     /// Run the uv-space update (off: m-CCH alone, for ablation experiments).
     pub uv_update: bool,
+    /// Analysis options. By default BLI paths colour their cone regions red (Wicke's heuristic),
+    /// which goes beyond the paper (Cha & Ko leave BLI out): their vertices are then pulled like
+    /// any red region. With `bli_regions_red = false` a BLI-only tanglement is reported as a
+    /// stall ("nothing to operate on") with its location and the loop stops as stuck.
+    pub analysis: crate::analysis::Options,
 }
 
 impl Default for ResolveParams {
@@ -46,6 +51,9 @@ impl Default for ResolveParams {
             max_steps: 2000,
             stuck_steps: 100,
             uv_update: true,
+            analysis: crate::analysis::Options {
+                bli_regions_red: true,
+            },
         }
     }
 }
@@ -190,7 +198,7 @@ impl Resolver {
     pub fn step(&mut self) -> Result<(LoopStep, StepReport)> {
         let t0 = Instant::now();
         let pos: Vec<Vec3> = self.sim.positions().to_vec();
-        let analysis = analyze(&self.am, &pos);
+        let analysis = analyze_with(&self.am, &pos, &self.params.analysis);
         let t1 = Instant::now();
         let ms = |x: Instant, y: Instant| (y - x).as_secs_f64() * 1e3;
         let a = match analysis {
