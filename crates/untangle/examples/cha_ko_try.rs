@@ -15,7 +15,11 @@ fn main() {
         .unwrap_or(1);
     let g = if which != "exploded" {
         let scene = untangle::scenes::by_name(&which, (n > 0).then_some(n), seed).unwrap();
-        let parts: Vec<_> = scene.meshes.iter().map(|m| (m, ObjectKind::Cloth)).collect();
+        let parts: Vec<_> = scene
+            .meshes
+            .iter()
+            .map(|m| (m, ObjectKind::Cloth))
+            .collect();
         let (am2, pos) = AnalysisMesh::new(&parts).unwrap();
         Garment::new(am2.merged(&pos, &scene.meshes.iter().collect::<Vec<_>>())).unwrap()
     } else {
