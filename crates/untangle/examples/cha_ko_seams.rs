@@ -163,9 +163,13 @@ fn main() {
             secs
         );
         log.extend(r.chako().finesse_log().iter().cloned());
+        print_table(&log, resolved, k + 1);
     }
-    let stats = FinesseStats::of(&log);
-    println!("\nresolved {resolved}/{scenes}");
+}
+
+fn print_table(log: &[FinesseRecord], resolved: usize, scenes: usize) {
+    let stats = FinesseStats::of(log);
+    println!("resolved {resolved}/{scenes}");
     println!(
         "{:<10} {:>6} {:>7} {:>7} {:>11}",
         "type", "#", "%", "t", "unfinished"
