@@ -28,6 +28,11 @@ fn main() {
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();
     p.max_steps = 400;
+    // Ablation: m-CCH alone, no uv-space update.
+    p.uv_update = std::env::var("NO_UV").is_err();
+    if !p.uv_update {
+        p.stuck_steps = usize::MAX;
+    }
     if let Some(l) = std::env::args().nth(4) {
         p.cha_ko.max_level = l.parse().unwrap();
     }
