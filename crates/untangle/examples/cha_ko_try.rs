@@ -27,7 +27,10 @@ fn main() {
     };
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();
-    p.max_steps = 400;
+    p.max_steps = std::env::var("MAX_STEPS").map_or(400, |s| s.parse().unwrap());
+    if let Ok(s) = std::env::var("STUCK") {
+        p.stuck_steps = s.parse().unwrap();
+    }
     // Ablation: m-CCH alone, no uv-space update.
     p.uv_update = std::env::var("NO_UV").is_err();
     if !p.uv_update {
