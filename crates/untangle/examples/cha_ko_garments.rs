@@ -17,7 +17,6 @@ use untangle::analysis::{analyze, AnalysisMesh, PathKind};
 use untangle::geom::Vec3;
 use untangle::mesh::{obj, subdivide, Garment};
 use untangle::methods::cha_ko::{ResolveParams, Resolver};
-use untangle::sim::{SimParams, Simulator, UniformThickness};
 
 fn main() {
     let arg = |i: usize, d: usize| {
@@ -42,33 +41,10 @@ fn main() {
             mesh = subdivide::subdivide(&mesh);
         }
         let g = Garment::new(mesh.clone()).expect("garment");
-        let gravity = Vec3::new(0.0, 0.0, -9.81);
-        // Pins: the top 3 % of the vertices by height.
-        let mut by_z: Vec<u32> = (0..mesh.positions.len() as u32).collect();
-        by_z.sort_by(|&a, &b| {
-            mesh.positions[b as usize]
-                .z
-                .total_cmp(&mesh.positions[a as usize].z)
-        });
-        let pins = &by_z[..(mesh.positions.len() * 3).div_ceil(100)];
-        // Tangling: self-collision off.
-        let mut sim = Simulator::new(
-            &g,
-            SimParams {
-                gravity,
-                collisions: false,
-                ..SimParams::default()
-            },
-        )
-        .expect("simulator");
-        for &v in pins {
-            sim.set_pinned(v, true).expect("pin");
-        }
-        for _ in 0..tangle_steps {
-            sim.step(&UniformThickness(1e-6));
-        }
-        let mut tangled = mesh.clone();
-        tangled.positions = sim.positions().to_vec();
+        let gravity = untangle::scenes::sagged::GRAVITY_Z;
+        let pins = untangle::scenes::sagged::top_vertices(&mesh, &Vec3::z(), 0.03);
+        let tangled =
+            untangle::scenes::sagged::sagged(&g, gravity, &pins, tangle_steps).expect("sagging");
         let (am, _) = AnalysisMesh::single(&tangled).expect("analysis mesh");
         let a0 = analyze(&am, &tangled.positions).expect("analysis");
         let bli = a0
@@ -82,7 +58,7 @@ fn main() {
         p.max_steps = max_steps;
         let t = Instant::now();
         let mut r = Resolver::new(&tg, p).expect("resolver");
-        for &v in pins {
+        for &v in &pins {
             r.simulator_mut().set_pinned(v, true).expect("pin");
         }
         let s = r.run(|_| {}).expect("run");

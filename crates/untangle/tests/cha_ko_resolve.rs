@@ -144,3 +144,44 @@ fn the_loop_is_deterministic_and_reports_the_step_limit() {
     };
     assert_eq!(run(), run());
 }
+
+#[test]
+fn sagged_garments_resolve() {
+    // The ARCSim t-shirt and dress (refined to a few thousand vertices), tangled by 25 steps of
+    // sagging with self-collision off (top 3 % pinned), resolved with the same pins and gravity;
+    // `examples/cha_ko_garments.rs` also runs the pants (BENCHMARKS.md).
+    use untangle::scenes::sagged::{sagged, top_vertices, GRAVITY_Z};
+    let shared = std::env::var("UNTANGLE_SHARED")
+        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared").into());
+    let dir = std::path::Path::new(&shared).join("data/arcsim/meshes");
+    for name in ["tshirt", "dress3"] {
+        let Ok(mut mesh) = untangle::mesh::obj::read_obj(&dir.join(format!("{name}.obj"))) else {
+            eprintln!("skipping: {name}.obj not found under {}", dir.display());
+            return;
+        };
+        while mesh.positions.len() < 2000 {
+            mesh = untangle::mesh::subdivide::subdivide(&mesh);
+        }
+        let g = Garment::new(mesh.clone()).unwrap();
+        let pins = top_vertices(&mesh, &Vec3::z(), 0.03);
+        let tangled = Garment::new(sagged(&g, GRAVITY_Z, &pins, 25).unwrap()).unwrap();
+        let (am, pos0) = AnalysisMesh::single(&tangled.mesh).unwrap();
+        let a0 = analyze(&am, &pos0).unwrap();
+        assert!(a0.segments.len() > 20, "{name}: {}", a0.segments.len());
+        let mut p = params(300);
+        p.sim.gravity = GRAVITY_Z;
+        let mut r = Resolver::new(&tangled, p).unwrap();
+        for &v in &pins {
+            r.simulator_mut().set_pinned(v, true).unwrap();
+        }
+        let s = r.run(|_| {}).unwrap();
+        assert_eq!(s.outcome, Outcome::Resolved, "{name}: {s:?}");
+        let a = analyze(&am, r.simulator().positions()).unwrap();
+        assert!(a.is_clean(), "{name}: {} pairs left", a.segments.len());
+        assert_eq!(r.chako().current_uv(), r.chako().original_uv());
+        // Pins held.
+        for &v in &pins {
+            assert_eq!(r.simulator().positions()[v as usize], pos0[v as usize]);
+        }
+    }
+}
