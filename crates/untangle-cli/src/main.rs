@@ -27,6 +27,8 @@ struct Cli {
 enum Command {
     /// Analyse meshes: find, trace, classify and colour every tanglement.
     Check(commands::check::Args),
+    /// Remove self-intersections by simulation (Cha & Ko 2022).
+    Fix(commands::fix::Args),
     /// Write a procedural test scene with a known answer.
     Scene(commands::scene::Args),
     /// Simulate cloth (implicit, with full-proof collision handling) and write the result.
@@ -61,6 +63,7 @@ fn main() -> ExitCode {
     let ctx = output::Context { quiet: cli.quiet };
     let result = match cli.command {
         Command::Check(a) => commands::check::run(a, &ctx),
+        Command::Fix(a) => commands::fix::run(a, &ctx),
         Command::Scene(a) => commands::scene::run(a, &ctx),
         Command::Demo(a) => commands::demo::run(a, &ctx),
         Command::Layers(a) => commands::layers::run(a, &ctx),
