@@ -55,6 +55,7 @@ pub fn analysis_picture(
         curves: &curves,
         camera: cam,
         caption,
+        wireframe: true,
     })
 }
 

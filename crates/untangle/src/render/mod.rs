@@ -34,10 +34,14 @@ pub struct MeshPicture<'a> {
     pub camera: &'a Camera,
     /// A caption written in the top-left corner.
     pub caption: &'a str,
+    /// Draw the triangle edges (one pixel, [`WIRE_COLOR`]) where they are visible.
+    pub wireframe: bool,
 }
 
 /// Background of mesh pictures.
 pub const BACKGROUND: Rgb = [250, 250, 250];
+/// Colour of triangle edges drawn over a mesh.
+pub const WIRE_COLOR: Rgb = [45, 45, 45];
 /// Colour of curves drawn over a mesh.
 pub const CURVE_COLOR: Rgb = [20, 20, 160];
 
@@ -49,7 +53,8 @@ pub fn default_shading(cam: &Camera) -> Shading {
     }
 }
 
-/// Draws a [`MeshPicture`]: z-buffered, flat-shaded triangles, then the curves (two pixels
+/// Draws a [`MeshPicture`]: z-buffered, flat-shaded triangles, the visible triangle edges if
+/// asked, then the curves (two pixels
 /// wide, visible where they are not behind a surface by more than 1% of the picture's depth
 /// range), then the caption.
 pub fn mesh_picture(p: &MeshPicture) -> Canvas {
@@ -61,6 +66,19 @@ pub fn mesh_picture(p: &MeshPicture) -> Canvas {
     let lo = depths.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = depths.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let bias = if hi > lo { 0.01 * (hi - lo) } else { 0.0 };
+    if p.wireframe {
+        let mut edges: Vec<[u32; 2]> = p
+            .triangles
+            .iter()
+            .flat_map(|t| (0..3).map(move |k| [t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3])]))
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        for [a, b] in edges {
+            let seg = [p.positions[a as usize], p.positions[b as usize]];
+            r.polyline(cam, &seg, 1, 0.3 * bias, WIRE_COLOR);
+        }
+    }
     for c in p.curves {
         r.polyline(cam, c, 2, bias, CURVE_COLOR);
     }
@@ -95,6 +113,7 @@ mod tests {
             curves: &curve,
             camera: &cam,
             caption: "TEST",
+            wireframe: false,
         });
         assert_eq!((pic.width, pic.height), (200, 200));
         // Lit almost head-on: pure-ish red on the left, green on the right.
@@ -110,5 +129,23 @@ mod tests {
         assert_eq!(px(0.3, 0.0), CURVE_COLOR);
         // Background around the sheet (the margin).
         assert_eq!(pic.get(3, 100), Some(BACKGROUND));
+        assert_eq!(pic.count(WIRE_COLOR), 0);
+        // With the wireframe: grid lines (x = -0.25 is one) are drawn, cell interiors are not.
+        let wired = mesh_picture(&MeshPicture {
+            positions: &m.positions,
+            triangles: &m.triangles,
+            colors: Some(&colors),
+            curves: &curve,
+            camera: &cam,
+            caption: "TEST",
+            wireframe: true,
+        });
+        let at = |x: f64, y: f64| {
+            let s = cam.project(&Vec3::new(x, y, 0.0));
+            wired.get(s[0].floor() as i64, s[1].floor() as i64).unwrap()
+        };
+        assert_eq!(at(-0.25, 0.1), WIRE_COLOR);
+        assert_eq!(at(-0.3, 0.1), l);
+        assert_eq!(at(0.3, 0.0), CURVE_COLOR);
     }
 }
