@@ -38,7 +38,8 @@ pub fn camera(points: &[Vec3], width: u32, height: u32) -> Camera {
 }
 
 /// A picture of analysed meshes: red / orange / green / grey vertex colours
-/// (`analysis::coloring::vertex_colors`) and the intersection curves in dark blue.
+/// (`analysis::coloring::vertex_colors`), the triangle edges when they are on average more than
+/// 8 pixels long, and the intersection curves in dark blue.
 pub fn analysis_picture(
     am: &AnalysisMesh,
     pos: &[Vec3],
@@ -48,6 +49,13 @@ pub fn analysis_picture(
 ) -> Canvas {
     let colors = analysis::coloring::vertex_colors(am, &a.coloring, &a.segments);
     let curves = analysis::curves::tanglement_curves(am, pos, a);
+    // Triangle edges only where they are far enough apart on screen to help, not to darken.
+    let edge_sum: f64 = am
+        .triangles
+        .iter()
+        .map(|t| (pos[t[0] as usize] - pos[t[1] as usize]).norm())
+        .sum();
+    let mean_edge_px = cam.scale * edge_sum / am.triangles.len().max(1) as f64;
     render::mesh_picture(&render::MeshPicture {
         positions: pos,
         triangles: &am.triangles,
@@ -55,7 +63,7 @@ pub fn analysis_picture(
         curves: &curves,
         camera: cam,
         caption,
-        wireframe: true,
+        wireframe: mean_edge_px > 8.0,
     })
 }
 
