@@ -395,6 +395,15 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
     if args.frame_every == 0 {
         bail!("--frame-every must be at least 1");
     }
+    if let Some(dir) = &args.frames {
+        // Frames are `frame_NNNN.obj`: never over an input that happens to be named so.
+        for i in &inputs {
+            let name = i.file_name().map(|n| n.to_string_lossy().into_owned());
+            if name.is_some_and(|n| n.starts_with("frame_")) {
+                check_output(&dir.join(i.file_name().unwrap_or_default()), &inputs)?;
+            }
+        }
+    }
     let Method::ChaKo = args.method;
     let garment = read_garment(&args.files)?;
     let body = match &args.body {
