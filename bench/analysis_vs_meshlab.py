@@ -6,8 +6,11 @@ Usage (from the repository root):  python3 bench/analysis_vs_meshlab.py [--runs 
 
 Installs pymeshlab into target/bench-venv (benchmark only; never a test dependency), builds the
 release binary, writes the scenes with `untangle scene`, then times:
-  - untangle: `untangle check --json`, the report's timing_ms.total (broad phase + crossings +
-    paths + kinds + regions + colouring), minimum and median over N runs (warm worker pool);
+  - untangle, warm (like MeshLab's repeated calls in one process): the `analysis_bench` example
+    on the same generators, N analyses in one process, minimum and median, with 2 worker threads
+    and with 1 (MeshLab's filter is single-threaded);
+  - untangle, cold: `untangle check --json` as a fresh process per run, the report's
+    timing_ms.total (broad phase + crossings + paths + kinds + regions + colouring);
   - MeshLab: compute_selection_by_self_intersections_per_face (detection only), min and median.
 It also cross-checks the number of intersecting faces: MeshLab's selection must equal our
 `intersecting_triangles` on generic scenes (where no triangle merely touches another).
@@ -80,6 +83,18 @@ def main():
     out = os.path.join(ROOT, "target", "bench-scenes")
     os.makedirs(out, exist_ok=True)
     scenes = [("folded", ["--size", "125"]), ("folded", ["--size", "224"])] + [("exploded", ["--seed", str(s)]) for s in range(3)]
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "untangle", "--example", "analysis_bench"], cwd=ROOT, check=True)
+    bench = os.path.join(ROOT, "target", "release", "examples", "analysis_bench")
+    only_of = {"folded --size 125": "folded n=125 dents=4", "folded --size 224": "folded n=224 dents=4",
+               **{f"exploded --seed {s}": f"exploded seed={s}" for s in range(3)}}
+
+    def warm(only, threads):
+        env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
+        text = subprocess.run([bench, "--runs", str(RUNS), "--only", only], capture_output=True,
+                              text=True, env=env, check=True).stdout
+        line = next(l for l in text.splitlines() if l.startswith(only))
+        return float(line.split("median")[1].split()[0]), float(line.split("min")[1].split()[0])
+
     rows = []
     for name, args in scenes:
         f = os.path.join(out, f"{name}{''.join(args)}.obj")
@@ -92,14 +107,16 @@ def main():
             ours.append(r["timing_ms"]["total"])
         ml = subprocess.run([py, "-c", MESHLAB, f, str(RUNS)], capture_output=True, text=True, check=True).stdout.split()
         ml_min, ml_med, ml_sel = float(ml[0]), float(ml[1]), int(ml[2])
-        rows.append((f"{name} {' '.join(args)}", r["triangles"], r["intersecting_triangle_pairs"], len(r["intersecting_triangles"]),
-                     ml_sel, min(ours), statistics.median(ours), ml_min, ml_med))
-    print(f"{'scene':<22} {'tris':>7} {'pairs':>6} {'faces':>6} {'ML faces':>8} | {'ours min':>9} {'ours med':>9} | {'ML min':>9} {'ML med':>9} | ratio (ML/ours, min)")
+        key = f"{name} {' '.join(args)}"
+        (w2_med, w2_min), (w1_med, w1_min) = warm(only_of[key], 2), warm(only_of[key], 1)
+        rows.append((key, r["triangles"], r["intersecting_triangle_pairs"], len(r["intersecting_triangles"]),
+                     ml_sel, min(ours), w2_min, w2_med, w1_min, ml_min, ml_med))
+    print("wall clock in ms (min over runs unless 'med'); ratios = MeshLab min / ours min")
+    print(f"{'scene':<20} {'tris':>7} {'pairs':>6} {'faces':>6} {'ML faces':>8} | {'cold':>6} {'warm2':>6} {'med':>6} {'warm1':>6} | {'ML':>6} {'ML med':>6} | warm2  warm1  cold")
     for r in rows:
-        print(f"{r[0]:<22} {r[1]:>7} {r[2]:>6} {r[3]:>6} {r[4]:>8} | {r[5]:>7.2f}ms {r[6]:>7.2f}ms | {r[7]:>7.2f}ms {r[8]:>7.2f}ms | {r[7]/r[5]:.1f}x")
+        print(f"{r[0]:<20} {r[1]:>7} {r[2]:>6} {r[3]:>6} {r[4]:>8} | {r[5]:>6.2f} {r[6]:>6.2f} {r[7]:>6.2f} {r[8]:>6.2f} | {r[9]:>6.2f} {r[10]:>6.2f} | "
+              f"{r[9]/r[6]:4.1f}x {r[9]/r[8]:4.1f}x {r[9]/r[5]:4.1f}x")
     if INSTRUCTIONS:
-        subprocess.run(["cargo", "build", "--release", "-q", "-p", "untangle", "--example", "analysis_bench"], cwd=ROOT, check=True)
-        bench = os.path.join(ROOT, "target", "release", "examples", "analysis_bench")
         env = dict(os.environ, RAYON_NUM_THREADS="1")
         print("\ninstructions per call (callgrind, single thread):")
         for name, only, f in [("folded --size 125", "folded n=125 dents=4", "folded--size125.obj"),
