@@ -239,7 +239,7 @@ pub fn untangle(
     let pb = ctx.progress(initial_red.max(1), "untangling");
     pb.set_style(
         indicatif::ProgressStyle::with_template(
-            "{msg:48} [{bar:30}] {pos}/{len} red vertices resolved, {elapsed}",
+            "{msg:30} [{bar:20}] {pos}/{len} red resolved {elapsed}",
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
         .progress_chars("=> "),
@@ -263,7 +263,7 @@ pub fn untangle(
         let (rec, _) = resolver.step().context("cha-ko step")?;
         pb.set_position(initial_red.saturating_sub(rec.red_vertices as u64));
         pb.set_message(format!(
-            "step {}/{max_steps}: {} red vertices, {} pairs",
+            "step {}/{max_steps}: {} red, {} pairs",
             rec.step + 1,
             rec.red_vertices,
             rec.intersecting_pairs
