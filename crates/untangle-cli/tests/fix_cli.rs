@@ -291,7 +291,7 @@ fn bad_input_is_one_line_exit_2_and_no_output() {
         "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
     )
     .unwrap();
-    let cases: Vec<(Vec<&str>, &str)> = vec![
+    let mut cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec!["fix", "missing.obj", "-o", "o.obj", "--method", "cha-ko"],
             "missing.obj",
@@ -345,6 +345,21 @@ fn bad_input_is_one_line_exit_2_and_no_output() {
             "gamma",
         ),
     ];
+    std::fs::create_dir(d.path().join("fr")).unwrap();
+    std::fs::copy(d.path().join("ex.obj"), d.path().join("fr/frame_0000.obj")).unwrap();
+    cases.push((
+        vec![
+            "fix",
+            "fr/frame_0000.obj",
+            "-o",
+            "o.obj",
+            "--method",
+            "cha-ko",
+            "--frames",
+            "fr",
+        ],
+        "refusing to overwrite an input",
+    ));
     let before = std::fs::read(d.path().join("ex.obj")).unwrap();
     for (args, what) in cases {
         let o = untangle(&args, d.path());
