@@ -366,6 +366,59 @@ mod tests {
         }
     }
 
+    proptest! {
+        /// The z-buffer keeps, per pixel, the nearest of the triangles drawn there: the oracle
+        /// renders each triangle alone and takes the pointwise maximum depth (and that
+        /// triangle's colour); the draw order does not matter.
+        #[test]
+        fn z_buffer_is_the_pointwise_nearest_of_single_renders(
+            c in proptest::collection::vec(-1.0f64..1.0, 45)
+        ) {
+            let tris: Vec<[Vec3; 3]> = c
+                .chunks(9)
+                .map(|v| [
+                    Vec3::new(v[0], v[1], v[2]),
+                    Vec3::new(v[3], v[4], v[5]),
+                    Vec3::new(v[6], v[7], v[8]),
+                ])
+                .collect();
+            let pts: Vec<Vec3> = tris.iter().flatten().copied().collect();
+            let cam = Camera::fit(&pts, Vec3::new(0.3, 0.4, 1.0), Vec3::y(), 48, 40, 2);
+            let sh = Shading { light: Vec3::z(), ambient: 0.3 };
+            let color = |k: usize| [[k as f32 / 5.0, 0.5, 1.0 - k as f32 / 5.0]; 3];
+            let singles: Vec<Raster> = tris
+                .iter()
+                .enumerate()
+                .map(|(k, t)| {
+                    let mut r = Raster::new(48, 40, [0; 3]);
+                    r.triangle(&cam, *t, color(k), &sh);
+                    r
+                })
+                .collect();
+            for order in [vec![0, 1, 2, 3, 4], vec![4, 3, 2, 1, 0], vec![2, 0, 4, 1, 3]] {
+                let mut r = Raster::new(48, 40, [0; 3]);
+                for &k in &order {
+                    r.triangle(&cam, tris[k], color(k), &sh);
+                }
+                for i in 0..48 * 40 {
+                    let best = (0..5)
+                        .filter(|&k| singles[k].depth[i] > f64::NEG_INFINITY)
+                        .max_by(|&a, &b| singles[a].depth[i].total_cmp(&singles[b].depth[i]));
+                    match best {
+                        None => prop_assert_eq!(r.depth[i], f64::NEG_INFINITY),
+                        Some(k) => {
+                            prop_assert_eq!(r.depth[i], singles[k].depth[i]);
+                            let ties = (0..5).filter(|&j| singles[j].depth[i] == singles[k].depth[i]).count();
+                            if ties == 1 {
+                                prop_assert_eq!(&r.canvas.rgb[3 * i..3 * i + 3], &singles[k].canvas.rgb[3 * i..3 * i + 3]);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     fn quad(z: f64, x0: f64, x1: f64) -> [[Vec3; 3]; 2] {
         let p = |x: f64, y: f64| Vec3::new(x, y, z);
         [
