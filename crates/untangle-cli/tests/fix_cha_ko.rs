@@ -48,6 +48,7 @@ fn fixes_an_exploded_handkerchief() {
         .arg(&input)
         .arg("--out")
         .arg(&input)
+        .args(["--method", "cha-ko"])
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
@@ -56,7 +57,7 @@ fn fixes_an_exploded_handkerchief() {
         .arg(&input)
         .arg("--out")
         .arg(dir.path().join("x.obj"))
-        .args(["--gamma", "1.5"])
+        .args(["--method", "cha-ko", "--gamma", "1.5"])
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));

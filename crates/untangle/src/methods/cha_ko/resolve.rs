@@ -299,24 +299,34 @@ impl Resolver {
         (rec, sr)
     }
 
+    /// Whether the loop should stop before another step, and why (see the module text):
+    /// resolved, stuck, or at the step limit. Callers driving the loop themselves with
+    /// [`Resolver::step`] (to move obstacles or write frames between steps) stop on it.
+    pub fn stop_reason(&self) -> Option<Outcome> {
+        if self.is_resolved() {
+            return Some(Outcome::Resolved);
+        }
+        if !self.history.is_empty()
+            && !self.last_clean
+            && (self.idle >= self.params.stuck_steps || self.since_best >= self.params.stuck_steps)
+        {
+            return Some(Outcome::Stuck);
+        }
+        if self.history.len() >= self.params.max_steps {
+            return Some(Outcome::StepLimit);
+        }
+        None
+    }
+
     /// Runs until resolved, stuck or `max_steps` (see the module text); `on_step` sees every
     /// pass (for progress bars and logs).
     pub fn run(&mut self, mut on_step: impl FnMut(&LoopStep)) -> Result<ResolveSummary> {
         let outcome = loop {
-            if self.history.len() >= self.params.max_steps {
-                break Outcome::StepLimit;
+            if let Some(o) = self.stop_reason() {
+                break o;
             }
             let (rec, _) = self.step()?;
             on_step(&rec);
-            if self.is_resolved() {
-                break Outcome::Resolved;
-            }
-            if !self.last_clean
-                && (self.idle >= self.params.stuck_steps
-                    || self.since_best >= self.params.stuck_steps)
-            {
-                break Outcome::Stuck;
-            }
         };
         Ok(self.summary(outcome))
     }
