@@ -518,11 +518,17 @@ pub fn text_summary(fix: &FixRun) -> String {
         }
     }
     for st in s.stalls.iter().take(5) {
-        let _ = writeln!(
-            t,
-            "  stall: {:?} at vertex {:?} triangle {:?} position {:?}",
-            st.reason, st.vertex, st.triangle, st.position
-        );
+        let mut line = format!("  stall: {:?}", st.reason);
+        if let Some(v) = st.vertex {
+            let _ = write!(line, " at vertex {v}");
+        }
+        if let Some(tri) = st.triangle {
+            let _ = write!(line, " triangle {tri}");
+        }
+        if let Some(p) = st.position {
+            let _ = write!(line, " near ({:.4}, {:.4}, {:.4})", p[0], p[1], p[2]);
+        }
+        let _ = writeln!(t, "{line}");
     }
     if s.stalls.len() > 5 {
         let _ = writeln!(
