@@ -5,6 +5,7 @@
 
 mod commands;
 mod output;
+mod pictures;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -27,6 +28,8 @@ struct Cli {
 enum Command {
     /// Analyse meshes: find, trace, classify and colour every tanglement.
     Check(commands::check::Args),
+    /// Remove self-intersections by simulation (Cha & Ko 2022).
+    Fix(commands::fix::Args),
     /// Write a procedural test scene with a known answer.
     Scene(commands::scene::Args),
     /// Simulate cloth (implicit, with full-proof collision handling) and write the result.
@@ -37,16 +40,27 @@ enum Command {
     Layers(commands::layers::Args),
 }
 
+/// A clap message on one line: without its "error: " prefix, usage and help hints.
+fn one_line(msg: &str) -> String {
+    msg.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with("Usage:") && !l.starts_with("For more"))
+        .map(|l| l.strip_prefix("error: ").unwrap_or(l))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
-            let _ = e.print();
-            return if e.use_stderr() {
-                ExitCode::from(2)
-            } else {
-                ExitCode::SUCCESS
-            };
+            if !e.use_stderr() {
+                // --help, --version
+                let _ = e.print();
+                return ExitCode::SUCCESS;
+            }
+            eprintln!("error: command line: {}", one_line(&e.to_string()));
+            return ExitCode::from(2);
         }
     };
     if let Some(n) = cli.threads {
@@ -61,6 +75,7 @@ fn main() -> ExitCode {
     let ctx = output::Context { quiet: cli.quiet };
     let result = match cli.command {
         Command::Check(a) => commands::check::run(a, &ctx),
+        Command::Fix(a) => commands::fix::run(a, &ctx),
         Command::Scene(a) => commands::scene::run(a, &ctx),
         Command::Demo(a) => commands::demo::run(a, &ctx),
         Command::Layers(a) => commands::layers::run(a, &ctx),

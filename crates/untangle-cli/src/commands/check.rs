@@ -1,4 +1,4 @@
-//! `untangle check FILE... [--body FILE] [--json PATH] [--colored-obj PATH]`
+//! `untangle check FILE... [--body FILE] [--json PATH] [--colored-obj PATH] [--png PATH]`
 
 use crate::output::{check_output, Context};
 use anyhow::{Context as _, Result};
@@ -21,6 +21,10 @@ pub struct Args {
     /// Write all meshes as one OBJ with per-vertex colours (red, green; grey for the body).
     #[arg(long)]
     pub colored_obj: Option<PathBuf>,
+    /// Write a picture of the meshes coloured like `--colored-obj`, with the intersection
+    /// curves in dark blue (PNG).
+    #[arg(long)]
+    pub png: Option<PathBuf>,
 }
 
 /// Runs `check`; exit code 0 when nothing intersects, 1 otherwise.
@@ -29,7 +33,10 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
     if let Some(b) = &args.body {
         inputs.push(b);
     }
-    for out in [&args.json, &args.colored_obj].into_iter().flatten() {
+    for out in [&args.json, &args.colored_obj, &args.png]
+        .into_iter()
+        .flatten()
+    {
         check_output(out, &inputs)?;
     }
     let mut meshes = Vec::new();
@@ -61,6 +68,16 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         let curves = analysis::curves::tanglement_curves(&am, &pos, &a);
         obj::append_polylines(&mut text, merged.positions.len(), "curve_", &curves);
         untangle::fsio::write_atomic(p, text.as_bytes())?;
+    }
+    if let Some(p) = &args.png {
+        let cam = crate::pictures::camera(&pos, 720, 600);
+        let caption = format!(
+            "{} red vertices, {} intersecting pairs",
+            a.coloring.num_red_vertices(),
+            a.segments.len()
+        );
+        let pic = crate::pictures::analysis_picture(&am, &pos, &a, &cam, &caption);
+        crate::pictures::write_png(p, &pic)?;
     }
     if !ctx.quiet {
         print!("{}", summary(&report));

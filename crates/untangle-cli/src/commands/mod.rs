@@ -2,6 +2,7 @@
 
 pub mod check;
 pub mod demo;
+pub mod fix;
 pub mod layers;
 pub mod scene;
 pub mod simulate;

@@ -153,25 +153,47 @@ pub fn pin_spec(spec: &str, positions: &[Vec3], boundary: &[bool]) -> Result<Vec
 }
 
 /// The body: its mesh (placed) and, for an animation, the placed positions of every frame.
-struct Body {
-    mesh: Mesh,
-    frames: Vec<Vec<Vec3>>,
+pub struct Body {
+    /// Frame 0's mesh, placed.
+    pub mesh: Mesh,
+    /// Placed positions of every frame (one for a static body).
+    pub frames: Vec<Vec<Vec3>>,
     /// The frames did not share one mesh: frame 0's vertices were tracked through them.
-    tracked: bool,
+    pub tracked: bool,
 }
 
-fn place(p: &Vec3, args: &Args) -> Vec3 {
-    let q = if args.body_z_up {
+/// How a body is placed: `--body-scale`, `--body-offset`, `--body-z-up`.
+pub struct Placement {
+    /// Scale, applied first.
+    pub scale: f64,
+    /// Offset added after scaling.
+    pub offset: Option<Vec3>,
+    /// Turn +Z up into +Y up.
+    pub z_up: bool,
+}
+
+impl Placement {
+    /// The identity placement.
+    pub const IDENTITY: Placement = Placement {
+        scale: 1.0,
+        offset: None,
+        z_up: false,
+    };
+}
+
+fn place(p: &Vec3, pl: &Placement) -> Vec3 {
+    let q = if pl.z_up {
         Vec3::new(p.x, p.z, -p.y)
     } else {
         *p
     };
-    q * args.body_scale + args.body_offset.unwrap_or_else(Vec3::zeros)
+    q * pl.scale + pl.offset.unwrap_or_else(Vec3::zeros)
 }
 
-fn load_body(path: &Path, args: &Args) -> Result<Body> {
-    if !(args.body_scale > 0.0 && args.body_scale.is_finite()) {
-        bail!("--body-scale must be positive, got {}", args.body_scale);
+/// Loads a body: an OBJ file, or a directory of OBJ frames (sorted by name).
+pub fn load_body(path: &Path, pl: &Placement) -> Result<Body> {
+    if !(pl.scale > 0.0 && pl.scale.is_finite()) {
+        bail!("--body-scale must be positive, got {}", pl.scale);
     }
     let files: Vec<PathBuf> = if path.is_dir() {
         let mut f: Vec<PathBuf> = std::fs::read_dir(path)
@@ -190,7 +212,7 @@ fn load_body(path: &Path, args: &Args) -> Result<Body> {
     let mut meshes = Vec::with_capacity(files.len());
     for f in &files {
         let mut m = obj::read_obj(f)?;
-        m.positions = m.positions.iter().map(|p| place(p, args)).collect();
+        m.positions = m.positions.iter().map(|p| place(p, pl)).collect();
         meshes.push(m);
     }
     let mut mesh = meshes[0].clone();
@@ -213,7 +235,7 @@ fn load_body(path: &Path, args: &Args) -> Result<Body> {
 }
 
 /// Body positions at the end of step `k` (of `steps`): frames spread evenly, linear in between.
-fn body_at(body: &Body, k: usize, steps: usize) -> Vec<Vec3> {
+pub fn body_at(body: &Body, k: usize, steps: usize) -> Vec<Vec3> {
     let f = body.frames.len();
     if f == 1 {
         return body.frames[0].clone();
@@ -272,7 +294,14 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         sim.set_pinned(v, true)?;
     }
     let body = match &args.body {
-        Some(p) => Some(load_body(p, &args)?),
+        Some(p) => Some(load_body(
+            p,
+            &Placement {
+                scale: args.body_scale,
+                offset: args.body_offset,
+                z_up: args.body_z_up,
+            },
+        )?),
         None => None,
     };
     if let Some(b) = &body {

@@ -9,6 +9,7 @@ pub mod folded;
 pub mod garment;
 pub mod outfit;
 pub mod rudimentary;
+pub mod sagged;
 pub mod sheet;
 
 pub use sheet::handkerchief;

@@ -687,6 +687,9 @@ impl Simulator {
                 settings,
                 coarse.as_ref(),
             );
+            // Momentum: CG leaves its error mostly in the rigid translations (see
+            // `pcg::correct_translations`).
+            pcg::correct_translations(&self.pattern, &a, &rhs, &fl, &mut dv);
             cg.iterations += r.iterations;
             cg.relative_residual = r.relative_residual;
             cg.converged = r.converged;

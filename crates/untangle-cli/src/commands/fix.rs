@@ -1,0 +1,558 @@
+//! `untangle fix IN.obj... -o OUT.obj --method cha-ko [--max-steps N] [--body FILE|DIR]
+//! [--pin SPEC] [--json PATH] [--frames DIR]`
+//!
+//! Removes self-intersections of a garment by simulation: Cha & Ko 2022 (intersection analysis
+//! and colouring, uv-space pulls / shrinks / revokes, m-CCH) inside the implicit cloth simulator.
+//! Several input files are analysed and simulated together as the panels of one garment.
+//!
+//! Exit code 0 when the output is free of intersections by the analysis (cloth-cloth, and
+//! cloth-body with `--body`), 1 when the run stopped (step limit, or stuck) with tanglements left
+//! (the JSON report's `final_analysis` says where and of what kind), 2 on error.
+
+use super::simulate::{body_at, load_body, pin_spec, Body, Placement};
+use crate::output::{check_output, Context};
+use anyhow::{bail, Context as _, Result};
+use std::path::{Path, PathBuf};
+use untangle::analysis::{self, report::Report, Analysis, AnalysisMesh, ObjectKind};
+use untangle::geom::Vec3;
+use untangle::mesh::{obj, Garment, Mesh};
+use untangle::methods::cha_ko::{LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver};
+
+/// Resolution methods.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Cha & Ko 2022: uv-space vertex pull and triangle shrinkage with m-CCH.
+    ChaKo,
+}
+
+/// Arguments of `fix`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Garment mesh(es) (OBJ with `vt` sewing-pattern coordinates; without `vt` the mesh is its
+    /// own flat pattern).
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Write the untangled garment here (OBJ; original uv).
+    #[arg(short = 'o', long)]
+    pub out: PathBuf,
+    /// Resolution method.
+    #[arg(long, value_enum)]
+    pub method: Method,
+    /// Write the JSON report (summary, every step, every operation, what is left) here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the cloth coloured by the analysis (red / orange / green, intersection curves as
+    /// `curve_N` polylines) as `frame_NNNN.obj` into this directory: frame 0 is the input,
+    /// frame k the state after step k.
+    #[arg(long)]
+    pub frames: Option<PathBuf>,
+    /// Steps between written frames (the last state is always written).
+    #[arg(long, default_value_t = 1)]
+    pub frame_every: usize,
+    /// A body the cloth collides with: an OBJ file (static), or a directory of OBJ frames
+    /// (sorted by name) played one frame every `--body-frame-steps` steps, interpolated
+    /// linearly, the last one then held.
+    #[arg(long)]
+    pub body: Option<PathBuf>,
+    /// Steps per body frame (with `--body DIR`).
+    #[arg(long, default_value_t = 1)]
+    pub body_frame_steps: usize,
+    /// Body thickness (metres).
+    #[arg(long, default_value_t = 2e-3)]
+    pub body_thickness: f64,
+    /// Pinned vertices (repeatable): `corners`, `top`, `box:XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX`, or
+    /// 1-based vertex numbers `I,J,K` as in the OBJ file.
+    #[arg(long, allow_hyphen_values = true)]
+    pub pin: Vec<String>,
+    /// Pull / shrink scale per step (Cha & Ko's gamma).
+    #[arg(long, default_value_t = 0.8)]
+    pub gamma: f64,
+    /// Time step (seconds).
+    #[arg(long, default_value_t = 0.02)]
+    pub dt: f64,
+    /// Green-green collision thickness (epsilon_CCD).
+    #[arg(long, default_value_t = 1e-6)]
+    pub eps: f64,
+    /// Red-green thickness as a multiple of the average edge length (epsilon_RG).
+    #[arg(long, default_value_t = 0.1)]
+    pub eps_rg_factor: f64,
+    /// Deepest pull / shrink level (rest length kept >= gamma^max_level).
+    #[arg(long, default_value_t = 15)]
+    pub max_level: u32,
+    /// Step limit.
+    #[arg(long, default_value_t = 2000)]
+    pub max_steps: usize,
+    /// Stop after this many steps without progress.
+    #[arg(long, default_value_t = 100)]
+    pub stuck_steps: usize,
+    /// Gravity along -y (m/s^2); 0 keeps the garment in place while it untangles.
+    #[arg(long, default_value_t = 0.0)]
+    pub gravity: f64,
+    /// Disable the fallbacks used when no fan passes the triangle inversion test.
+    #[arg(long)]
+    pub no_fallback: bool,
+    /// Leave BLI paths uncoloured (the paper's method; by default their cone regions, Wicke's
+    /// heuristic, are coloured red and pulled out like any other region).
+    #[arg(long)]
+    pub no_bli_regions: bool,
+}
+
+impl Args {
+    /// The loop's parameters from the command line.
+    pub fn params(&self) -> ResolveParams {
+        let mut p = ResolveParams::default();
+        p.cha_ko.gamma = self.gamma;
+        p.cha_ko.dt = self.dt;
+        p.cha_ko.eps = self.eps;
+        p.cha_ko.eps_rg_factor = self.eps_rg_factor;
+        p.cha_ko.max_level = self.max_level;
+        p.cha_ko.fallback = !self.no_fallback;
+        p.sim.gravity = Vec3::new(0.0, -self.gravity, 0.0);
+        p.max_steps = self.max_steps;
+        p.stuck_steps = self.stuck_steps;
+        p.analysis.bli_regions_red = !self.no_bli_regions;
+        p
+    }
+}
+
+/// What a run needs besides the garment and the loop's parameters.
+pub struct Setup<'a> {
+    /// The body, if any.
+    pub body: Option<&'a Body>,
+    /// Steps per body frame.
+    pub body_frame_steps: usize,
+    /// Body thickness.
+    pub body_thickness: f64,
+    /// Pinned garment vertices (0-based).
+    pub pinned: &'a [u32],
+    /// Frame directory and steps between frames.
+    pub frames: Option<(&'a Path, usize)>,
+}
+
+/// The result of a run.
+pub struct FixRun {
+    /// The loop's summary.
+    pub summary: ResolveSummary,
+    /// Every step.
+    pub history: Vec<LoopStep>,
+    /// The garment at its final positions (original uv).
+    pub out_mesh: Mesh,
+    /// The analysis mesh of the garment (and body), its final positions and analysis.
+    pub final_am: AnalysisMesh,
+    /// See `final_am`.
+    pub final_pos: Vec<Vec3>,
+    /// See `final_am`.
+    pub final_analysis: Analysis,
+    /// The analysis at the start (garment and body at their first positions).
+    pub initial_analysis: Analysis,
+    /// The positions analysed at the start.
+    pub initial_pos: Vec<Vec3>,
+    /// The JSON report.
+    pub report: serde_json::Value,
+}
+
+impl FixRun {
+    /// Whether the output is free of intersections by the analysis.
+    pub fn is_clean(&self) -> bool {
+        self.final_analysis.is_clean()
+    }
+}
+
+/// Garment and body together for the analysis of what is written.
+struct Scene<'a> {
+    am: AnalysisMesh,
+    pos: Vec<Vec3>,
+    garment: &'a Mesh,
+}
+
+impl<'a> Scene<'a> {
+    fn new(garment: &'a Mesh, body: Option<&Body>) -> Result<Scene<'a>> {
+        let mut parts = vec![(garment, ObjectKind::Cloth)];
+        if let Some(b) = body {
+            parts.push((&b.mesh, ObjectKind::Obstacle));
+        }
+        let (am, pos) = AnalysisMesh::new(&parts)?;
+        Ok(Scene { am, pos, garment })
+    }
+
+    fn analyse(&mut self, r: &Resolver) -> Result<Analysis> {
+        let sim = r.simulator();
+        let n = sim.positions().len();
+        self.pos[..n].copy_from_slice(sim.positions());
+        if self.pos.len() > n {
+            self.pos[n..].copy_from_slice(&sim.obstacles().start);
+        }
+        analysis::analyze(&self.am, &self.pos).context("intersection analysis")
+    }
+
+    /// The garment coloured by `a`, with the intersection curves as polylines.
+    fn colored_obj(&self, a: &Analysis, header: &str) -> String {
+        let n = self.garment.positions.len();
+        let mut m = self.garment.clone();
+        m.positions = self.pos[..n].to_vec();
+        let colors = analysis::coloring::vertex_colors(&self.am, &a.coloring, &a.segments);
+        let mut text = obj::format_obj(&m, Some(&colors[..n]), header);
+        let curves = analysis::curves::tanglement_curves(&self.am, &self.pos, a);
+        obj::append_polylines(&mut text, n, "curve_", &curves);
+        text
+    }
+}
+
+/// Runs the Cha & Ko loop on `garment` (with a progress bar showing the red vertices left),
+/// writes frames if asked, analyses the result and builds the JSON report.
+pub fn untangle(
+    garment: &Garment,
+    params: ResolveParams,
+    setup: &Setup,
+    ctx: &Context,
+) -> Result<FixRun> {
+    if setup.body_frame_steps == 0 {
+        bail!("--body-frame-steps must be at least 1");
+    }
+    let max_steps = params.max_steps;
+    let mut resolver = Resolver::new(garment, params).context("cha-ko")?;
+    if let Some(b) = setup.body {
+        resolver
+            .simulator_mut()
+            .add_obstacle(untangle::sim::Obstacle::from_mesh(
+                &b.mesh,
+                setup.body_thickness,
+                0.3,
+            )?)?;
+    }
+    for &v in setup.pinned {
+        resolver.simulator_mut().set_pinned(v, true)?;
+    }
+    let mut scene = Scene::new(&garment.mesh, setup.body)?;
+    let initial_analysis = scene.analyse(&resolver)?;
+    let initial_pos = scene.pos.clone();
+    if let Some((dir, _)) = setup.frames {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+        write_frame(
+            dir,
+            0,
+            &scene.colored_obj(&initial_analysis, "untangle fix: input"),
+        )?;
+    }
+    let initial_red = initial_analysis.coloring.num_red_vertices() as u64;
+    let pb = ctx.progress(initial_red.max(1), "untangling");
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg:30} [{bar:20}] {pos}/{len} red resolved {elapsed}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    let body_span = setup.body.map_or(0, |b| {
+        (b.frames.len().saturating_sub(1)) * setup.body_frame_steps
+    });
+    let outcome = loop {
+        if let Some(o) = resolver.stop_reason() {
+            break o;
+        }
+        let k = resolver.history().len();
+        if let Some(b) = setup.body {
+            if b.frames.len() > 1 {
+                let next = body_at(b, (k + 1).min(body_span), body_span);
+                resolver
+                    .simulator_mut()
+                    .set_obstacle_next_positions(0, &next)?;
+            }
+        }
+        let (rec, _) = resolver.step().context("cha-ko step")?;
+        pb.set_position(initial_red.saturating_sub(rec.red_vertices as u64));
+        pb.set_message(format!(
+            "step {}/{max_steps}: {} red, {} pairs",
+            rec.step + 1,
+            rec.red_vertices,
+            rec.intersecting_pairs
+        ));
+        if let Some((dir, every)) = setup.frames {
+            let done = resolver.stop_reason().is_some();
+            if (k + 1) % every.max(1) == 0 || done {
+                let a = scene.analyse(&resolver)?;
+                let text = scene.colored_obj(&a, &format!("untangle fix: after step {}", k + 1));
+                write_frame(dir, k + 1, &text)?;
+            }
+        }
+    };
+    pb.finish_and_clear();
+    let summary = resolver.summary(outcome);
+    let final_analysis = scene.analyse(&resolver)?;
+    let final_pos = scene.pos.clone();
+    let mut out_mesh = garment.mesh.clone();
+    out_mesh.positions = resolver.simulator().positions().to_vec();
+    let history = resolver.history().to_vec();
+    let final_report = Report::new(&scene.am, &final_pos, &final_analysis);
+    let final_json: serde_json::Value = serde_json::from_str(&final_report.to_json())?;
+    let report = serde_json::json!({
+        "method": "cha-ko",
+        "vertices": garment.mesh.positions.len(),
+        "triangles": garment.mesh.triangles.len(),
+        "pinned": setup.pinned.len(),
+        "body": setup.body.map(|b| serde_json::json!({
+            "vertices": b.mesh.positions.len(),
+            "triangles": b.mesh.triangles.len(),
+            "frames": b.frames.len(),
+        })),
+        "params": resolver.chako().params(),
+        "eps_rg": resolver.chako().eps_rg(),
+        "outcome": summary.outcome,
+        "output_intersection_free": final_analysis.is_clean(),
+        "output_intersecting_pairs": final_analysis.segments.len(),
+        "summary": summary,
+        "steps": history.iter().map(step_json).collect::<Vec<_>>(),
+        "final_analysis": final_json,
+        "step_details": history,
+        "operations": resolver.chako().finesse_log(),
+    });
+    Ok(FixRun {
+        summary,
+        history,
+        out_mesh,
+        final_am: scene.am,
+        final_pos,
+        final_analysis,
+        initial_analysis,
+        initial_pos,
+        report,
+    })
+}
+
+fn write_frame(dir: &Path, k: usize, text: &str) -> Result<()> {
+    untangle::fsio::write_atomic(&dir.join(format!("frame_{k:04}.obj")), text.as_bytes())?;
+    Ok(())
+}
+
+/// The per-step entry of the report: what the analysis saw at the start of the step, what the
+/// uv update applied, and the time.
+fn step_json(s: &LoopStep) -> serde_json::Value {
+    serde_json::json!({
+        "step": s.step,
+        "red_vertices": s.red_vertices,
+        "red_triangles": s.red_triangles,
+        "intersecting_pairs": s.intersecting_pairs,
+        "tanglements": s.tanglements,
+        "pulls": s.uv.pulls_started + s.uv.pulls_continued,
+        "pulls_started": s.uv.pulls_started,
+        "shrinks": s.uv.shrinks_started + s.uv.shrinks_continued,
+        "shrinks_started": s.uv.shrinks_started,
+        "revokes": s.uv.revoked_levels,
+        "restored": s.uv.restored,
+        "active_ops": s.uv.active_ops,
+        "analysis_error": s.analysis_error,
+        "ms": step_ms(s),
+        "ms_analysis": s.ms_analysis,
+        "ms_uv": s.ms_uv + s.ms_rest,
+        "ms_sim": s.ms_sim,
+    })
+}
+
+/// Milliseconds of one step: analysis, uv update, rest-shape update and simulation.
+pub fn step_ms(s: &LoopStep) -> f64 {
+    s.ms_analysis + s.ms_uv + s.ms_rest + s.ms_sim
+}
+
+/// Reads the garment: one file, or several files with uv merged into one garment.
+pub fn read_garment(files: &[PathBuf]) -> Result<Garment> {
+    let meshes: Vec<_> = files
+        .iter()
+        .map(|f| obj::read_obj(f))
+        .collect::<untangle::Result<_>>()?;
+    if meshes.len() == 1 {
+        let name = files[0].display().to_string();
+        return Garment::new(meshes[0].clone()).with_context(|| name);
+    }
+    if let Some(k) = meshes.iter().position(|m| m.uv.is_none()) {
+        bail!(
+            "{}: several inputs must all have uv (vt) coordinates",
+            files[k].display()
+        );
+    }
+    let parts: Vec<_> = meshes.iter().map(|m| (m, ObjectKind::Cloth)).collect();
+    let (am, pos) = AnalysisMesh::new(&parts)?;
+    Ok(Garment::new(
+        am.merged(&pos, &meshes.iter().collect::<Vec<_>>()),
+    )?)
+}
+
+/// Runs `fix`; exit code 0 when the output is free of intersections, 1 otherwise.
+pub fn run(args: Args, ctx: &Context) -> Result<u8> {
+    let mut inputs: Vec<&Path> = args.files.iter().map(|p| p.as_path()).collect();
+    if let Some(b) = &args.body {
+        inputs.push(b);
+    }
+    for out in std::iter::once(&args.out).chain(args.json.iter()) {
+        check_output(out, &inputs)?;
+    }
+    if args.json.as_ref() == Some(&args.out) {
+        bail!(
+            "{}: the report and the mesh cannot be the same file",
+            args.out.display()
+        );
+    }
+    if args.frame_every == 0 {
+        bail!("--frame-every must be at least 1");
+    }
+    if let Some(dir) = &args.frames {
+        // Frames are `frame_NNNN.obj`: never over an input that happens to be named so.
+        for i in &inputs {
+            let name = i.file_name().map(|n| n.to_string_lossy().into_owned());
+            if name.is_some_and(|n| n.starts_with("frame_")) {
+                check_output(&dir.join(i.file_name().unwrap_or_default()), &inputs)?;
+            }
+        }
+    }
+    let Method::ChaKo = args.method;
+    let garment = read_garment(&args.files)?;
+    let body = match &args.body {
+        Some(p) => Some(load_body(p, &Placement::IDENTITY)?),
+        None => None,
+    };
+    let mut pinned = Vec::new();
+    for spec in &args.pin {
+        pinned.extend(pin_spec(
+            spec,
+            &garment.mesh.positions,
+            &garment.topology.boundary_vertex,
+        )?);
+    }
+    pinned.sort_unstable();
+    pinned.dedup();
+    let setup = Setup {
+        body: body.as_ref(),
+        body_frame_steps: args.body_frame_steps,
+        body_thickness: args.body_thickness,
+        pinned: &pinned,
+        frames: args.frames.as_deref().map(|d| (d, args.frame_every)),
+    };
+    let fix = untangle(&garment, args.params(), &setup, ctx)?;
+    obj::write_obj(
+        &args.out,
+        &fix.out_mesh,
+        None,
+        &format!(
+            "untangle fix --method cha-ko: {:?} after {} steps",
+            fix.summary.outcome, fix.summary.steps
+        ),
+    )?;
+    if let Some(j) = &args.json {
+        let mut report = fix.report.clone();
+        report["input"] = serde_json::json!(args
+            .files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>());
+        untangle::fsio::write_atomic(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    }
+    if !ctx.quiet {
+        print!("{}", text_summary(&fix));
+        println!("wrote {}", args.out.display());
+        if let Some(j) = &args.json {
+            println!("wrote {}", j.display());
+        }
+        if let Some(d) = &args.frames {
+            println!("wrote frames into {}", d.display());
+        }
+    }
+    Ok(if fix.is_clean() { 0 } else { 1 })
+}
+
+/// The short human summary of a run.
+pub fn text_summary(fix: &FixRun) -> String {
+    use std::fmt::Write;
+    let s = &fix.summary;
+    let mut t = String::new();
+    let outcome = match s.outcome {
+        Outcome::Resolved => "resolved",
+        Outcome::StepLimit => "step limit reached",
+        Outcome::Stuck => "stuck",
+    };
+    let _ = writeln!(
+        t,
+        "cha-ko: {outcome} after {} steps: {} -> {} intersecting triangle pairs, {} -> {} red vertices",
+        s.steps, s.initial_pairs, s.final_pairs, s.initial_red_vertices, s.final_red_vertices
+    );
+    if fix.is_clean() {
+        let _ = writeln!(t, "output: free of intersections");
+    } else {
+        let fa = &fix.final_analysis;
+        let _ = writeln!(
+            t,
+            "output: {} intersecting triangle pairs in {} tanglements left",
+            fa.segments.len(),
+            fa.tanglements.len()
+        );
+        let r = Report::new(&fix.final_am, &fix.final_pos, fa);
+        let kinds: Vec<String> = r
+            .tanglements_by_kind
+            .iter()
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
+        let _ = writeln!(
+            t,
+            "  left: {} (locations in the JSON report)",
+            kinds.join(", ")
+        );
+    }
+    let ops: (usize, usize, usize) = fix.history.iter().fold((0, 0, 0), |a, h| {
+        (
+            a.0 + h.uv.pulls_started + h.uv.pulls_continued,
+            a.1 + h.uv.shrinks_started + h.uv.shrinks_continued,
+            a.2 + h.uv.revoked_levels,
+        )
+    });
+    let _ = writeln!(
+        t,
+        "uv edits: {} pull levels, {} shrink levels, {} revoked levels",
+        ops.0, ops.1, ops.2
+    );
+    for r in &s.finesse.rows {
+        if r.count + r.unfinished > 0 {
+            let _ = writeln!(
+                t,
+                "  {:?}: {} finesses, {:.2} steps each ({} unfinished)",
+                r.seam, r.count, r.mean_steps, r.unfinished
+            );
+        }
+    }
+    for st in s.stalls.iter().take(5) {
+        let mut line = format!("  stall: {:?}", st.reason);
+        if let Some(v) = st.vertex {
+            let _ = write!(line, " at vertex {v}");
+        }
+        if let Some(tri) = st.triangle {
+            let _ = write!(line, " triangle {tri}");
+        }
+        if let Some(p) = st.position {
+            let _ = write!(line, " near ({:.4}, {:.4}, {:.4})", p[0], p[1], p[2]);
+        }
+        let _ = writeln!(t, "{line}");
+    }
+    if s.stalls.len() > 5 {
+        let _ = writeln!(
+            t,
+            "  ... {} stalls in all (see the JSON report)",
+            s.stalls.len()
+        );
+    }
+    if s.administrative_quits + s.analysis_errors > 0 {
+        let _ = writeln!(
+            t,
+            "  {} administrative quits of the collision handling, {} failed analyses",
+            s.administrative_quits, s.analysis_errors
+        );
+    }
+    let total: f64 = fix.history.iter().map(step_ms).sum();
+    let _ = writeln!(
+        t,
+        "time: {:.2} s ({:.2} ms/step: analysis {:.2}, uv update {:.2}, simulation {:.2})",
+        total / 1e3,
+        total / s.steps.max(1) as f64,
+        s.mean_ms[0],
+        s.mean_ms[1],
+        s.mean_ms[2]
+    );
+    t
+}

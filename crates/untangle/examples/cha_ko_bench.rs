@@ -1,0 +1,114 @@
+//! Cost of one Cha & Ko step (analysis + colouring, uv-space update, simulator step with m-CCH)
+//! on a garment of about the paper's size (Sec. 9.3: 4,183 vertices at 1.56 fps).
+//!
+//! The ARCSim t-shirt refined twice (4,950 vertices) is tangled by exploding `patches` two-ring
+//! patches (as in `cha_ko_seams`) and run for `steps` steps of the loop without gravity; the mean
+//! milliseconds of each part are printed, with steps per second.
+//!
+//! ```text
+//! cargo run --release -p untangle --example cha_ko_bench -- [subdivisions] [patches] [steps]
+//! ```
+
+use rand::{Rng, SeedableRng};
+use untangle::geom::Vec3;
+use untangle::mesh::{obj, subdivide, Garment};
+use untangle::methods::cha_ko::{ResolveParams, Resolver};
+
+fn main() {
+    let arg = |i: usize, d: usize| {
+        std::env::args()
+            .nth(i)
+            .map(|s| s.parse().expect("a number"))
+            .unwrap_or(d)
+    };
+    let (subdivisions, patches, steps) = (arg(1, 2), arg(2, 3), arg(3, 30));
+    let shared = std::env::var("UNTANGLE_SHARED")
+        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared").into());
+    let path = std::path::Path::new(&shared).join("data/arcsim/meshes/tshirt.obj");
+    let Ok(mut mesh) = obj::read_obj(&path) else {
+        eprintln!("skipping: {} not found", path.display());
+        return;
+    };
+    for _ in 0..subdivisions {
+        mesh = subdivide::subdivide(&mesh);
+    }
+    let g0 = Garment::new(mesh.clone()).expect("garment");
+    let avg = g0
+        .topology
+        .edges
+        .iter()
+        .map(|e| (mesh.positions[e[0] as usize] - mesh.positions[e[1] as usize]).norm())
+        .sum::<f64>()
+        / g0.topology.num_edges() as f64;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let interior: Vec<u32> = (0..mesh.positions.len() as u32)
+        .filter(|&v| !g0.topology.boundary_vertex[v as usize])
+        .collect();
+    for _ in 0..patches {
+        let c = interior[rng.random_range(0..interior.len())];
+        let centre = mesh.positions[c as usize];
+        let mut ring = vec![c];
+        for _ in 0..2 {
+            let next: Vec<u32> = ring
+                .iter()
+                .flat_map(|&v| g0.topology.vertex_neighbors.row(v as usize).iter().copied())
+                .collect();
+            ring.extend(next);
+            ring.sort_unstable();
+            ring.dedup();
+        }
+        for v in ring {
+            let r = rng.random_range(0.0..avg);
+            let phi = rng.random_range(0.0..std::f64::consts::TAU);
+            let z: f64 = rng.random_range(-1.0..1.0);
+            let s = (1.0 - z * z).sqrt();
+            mesh.positions[v as usize] =
+                centre + Vec3::new(r * s * phi.cos(), r * s * phi.sin(), r * z);
+        }
+    }
+    let g = Garment::new(mesh).expect("garment");
+    let mut p = ResolveParams::default();
+    p.sim.gravity = Vec3::zeros();
+    p.max_steps = steps;
+    let mut r = Resolver::new(&g, p).expect("resolver");
+    let t = std::time::Instant::now();
+    let s = r
+        .run(|x| {
+            eprintln!(
+                "step {}: {} pairs, analysis {:.2} ms, uv {:.3} ms, rest {:.3} ms, sim {:.1} ms",
+                x.step, x.intersecting_pairs, x.ms_analysis, x.ms_uv, x.ms_rest, x.ms_sim
+            )
+        })
+        .expect("run");
+    let wall = t.elapsed().as_secs_f64();
+    let h = r.history();
+    let n = h.len() as f64;
+    let mean =
+        |f: &dyn Fn(&untangle::methods::cha_ko::LoopStep) -> f64| h.iter().map(f).sum::<f64>() / n;
+    println!(
+        "t-shirt x{subdivisions}: {} vertices, {} triangles; {} exploded patches; {} steps, {:?}",
+        g.mesh.positions.len(),
+        g.mesh.triangles.len(),
+        patches,
+        s.steps,
+        s.outcome
+    );
+    println!(
+        "intersecting pairs {} -> {}, red vertices {} -> {}",
+        s.initial_pairs, s.final_pairs, s.initial_red_vertices, s.final_red_vertices
+    );
+    println!(
+        "mean ms per step: analysis {:.2}, uv update {:.3}, rest-shape update {:.3}, simulation {:.1}; total {:.1} ms = {:.2} steps/s (wall {:.1} s)",
+        mean(&|x| x.ms_analysis),
+        mean(&|x| x.ms_uv),
+        mean(&|x| x.ms_rest),
+        mean(&|x| x.ms_sim),
+        1e3 * wall / n,
+        n / wall,
+        wall
+    );
+    println!(
+        "largest uv update {:.3} ms",
+        h.iter().map(|x| x.ms_uv).fold(0.0, f64::max)
+    );
+}

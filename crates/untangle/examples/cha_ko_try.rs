@@ -1,0 +1,61 @@
+use untangle::analysis::{AnalysisMesh, ObjectKind};
+use untangle::geom::Vec3;
+use untangle::mesh::Garment;
+use untangle::methods::cha_ko::{ResolveParams, Resolver};
+
+fn main() {
+    let which = std::env::args().nth(1).unwrap_or("closed".into());
+    let n: usize = std::env::args()
+        .nth(2)
+        .map(|s| s.parse().unwrap())
+        .unwrap_or(12);
+    let seed: u64 = std::env::args()
+        .nth(3)
+        .map(|s| s.parse().unwrap())
+        .unwrap_or(1);
+    let g = if which != "exploded" {
+        let scene = untangle::scenes::by_name(&which, (n > 0).then_some(n), seed).unwrap();
+        let parts: Vec<_> = scene
+            .meshes
+            .iter()
+            .map(|m| (m, ObjectKind::Cloth))
+            .collect();
+        let (am2, pos) = AnalysisMesh::new(&parts).unwrap();
+        Garment::new(am2.merged(&pos, &scene.meshes.iter().collect::<Vec<_>>())).unwrap()
+    } else {
+        Garment::new(untangle::scenes::exploded::exploded(seed, n).meshes[0].clone()).unwrap()
+    };
+    let mut p = ResolveParams::default();
+    p.sim.gravity = Vec3::zeros();
+    p.max_steps = std::env::var("MAX_STEPS").map_or(400, |s| s.parse().unwrap());
+    if let Ok(s) = std::env::var("STUCK") {
+        p.stuck_steps = s.parse().unwrap();
+    }
+    // Ablation: m-CCH alone, no uv-space update.
+    p.uv_update = std::env::var("NO_UV").is_err();
+    if !p.uv_update {
+        p.stuck_steps = usize::MAX;
+    }
+    if let Some(l) = std::env::args().nth(4) {
+        p.cha_ko.max_level = l.parse().unwrap();
+    }
+    if let Some(h) = std::env::args().nth(5) {
+        p.cha_ko.hold_steps = h.parse().unwrap();
+    }
+    let mut r = Resolver::new(&g, p).unwrap();
+    let s = r
+        .run(|st| {
+            println!(
+                "{} pairs {} tang {} red {} rtri {} | pull +{} ~{} shrink +{} ~{} rev {} blk {}/{} act {} sat {} fb {} st {} | aq {} z {} | {:.1} {:.1} {:.1} ms",
+                st.step, st.intersecting_pairs, st.tanglements, st.red_vertices, st.red_triangles,
+                st.uv.pulls_started, st.uv.pulls_continued, st.uv.shrinks_started, st.uv.shrinks_continued,
+                st.uv.revoked_levels, st.uv.blocked_fan, st.uv.blocked_subject, st.uv.active_ops, st.uv.saturated_ops,
+                st.uv.fallbacks.len(), st.uv.stalls.len(),
+                st.administrative_quit, st.impact_zones, st.ms_analysis, st.ms_uv, st.ms_sim
+            )
+        })
+        .unwrap();
+    let mut s2 = s.clone();
+    s2.stalls.truncate(5);
+    println!("{}", serde_json::to_string(&s2).unwrap());
+}

@@ -1,0 +1,260 @@
+//! Cha & Ko 2022, *Tanglement Resolution in Clothing Simulation With Explicit Convergence*:
+//! the uv-space mesh update and the m-CCH contact policy, as a library a simulator calls from its
+//! own loop (Fig. 1b):
+//!
+//! ```text
+//! let mut ck = ChaKo::new(&garment, Params::default())?;
+//! let (am, _) = AnalysisMesh::single(&garment.mesh)?;     // or with a body as obstacle after it
+//! loop {
+//!     let a = analyze(&am, &positions)?;                    // intersection analysis + colouring (Sec. 3)
+//!     let report = ck.update_uv(&am, &a, &positions)?;      // Alg. 2 (Sec. 5.1, 6, 8)
+//!     sim.set_rest_uv(ck.current_uv());                     // the rest shape changed
+//!     sim.step(&ck.contact_policy(&am, &a));                // m-CCH (Sec. 5.2, 5.3)
+//! }
+//! ```
+//!
+//! Modules, one concept each: [`params`] (gamma, dt, epsilons), [`state`] (original and current
+//! uv, operations in progress, exact revoke), [`fan`] (fans and their triangles), [`tit`] (the
+//! exact triangle inversion test), [`operations`] (pull, shrink, target choice), [`schedule`]
+//! (Algorithm 2), [`seams`] (coordinated pulls across panels, our design of the missing
+//! Appendix A/B), [`fallback`] (when no fan passes the test, Sec. 6.1, our design of the missing
+//! Appendix C), [`policy`] (m-CCH), [`report`] (per-step reports and the Table 1 analogue),
+//! [`resolve`] (the whole loop of Fig. 1b with the simulator).
+
+pub mod fallback;
+pub mod fan;
+pub mod operations;
+pub mod params;
+pub mod policy;
+pub mod report;
+pub mod resolve;
+pub mod schedule;
+pub mod seams;
+pub mod state;
+pub mod tit;
+
+pub use fallback::Fallback;
+pub use params::Params;
+pub use policy::{MchPolicy, PairColour};
+pub use report::{EndReason, FinesseRecord, FinesseStats, Stall, StallReason, UvUpdateReport};
+pub use resolve::{LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver};
+pub use seams::SeamKind;
+pub use state::{MovedCopy, Op, OpKind};
+
+use crate::analysis::{Analysis, AnalysisMesh, Coloring, ObjectKind};
+use crate::error::{Error, Result};
+use crate::geom::{Vec2, Vec3};
+use crate::mesh::{Garment, UvLayer};
+use operations::UvMesh;
+use state::UvState;
+
+/// The Cha & Ko uv-space updater of one garment: original and current uv, operations in
+/// progress, the finesse log.
+#[derive(Clone, Debug)]
+pub struct ChaKo {
+    params: Params,
+    mesh: UvMesh,
+    state: UvState,
+    log: Vec<FinesseRecord>,
+    step: u64,
+    avg_edge: f64,
+    eps_rg: f64,
+    moved: Vec<u64>,
+    tabu: std::collections::BTreeMap<schedule::TabuKey, u64>,
+}
+
+impl ChaKo {
+    /// An updater for `garment` with `params` (checked). The garment's uv is the original rest
+    /// shape.
+    pub fn new(garment: &Garment, params: Params) -> Result<ChaKo> {
+        params.validate()?;
+        let orig = garment.uv().coords.clone();
+        let avg_edge = average_uv_edge_length(garment);
+        let eps_rg = params.eps_rg.unwrap_or(params.eps_rg_factor * avg_edge);
+        let n = garment.mesh.positions.len();
+        Ok(ChaKo {
+            mesh: UvMesh::new(garment.clone(), params.min_scale()),
+            state: UvState::new(orig, n, params.gamma),
+            log: Vec::new(),
+            step: 0,
+            avg_edge,
+            eps_rg,
+            moved: vec![0; n],
+            tabu: Default::default(),
+            params,
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// The garment (with its original uv).
+    pub fn garment(&self) -> &Garment {
+        &self.mesh.garment
+    }
+
+    /// Number of updates run so far.
+    pub fn steps(&self) -> u64 {
+        self.step
+    }
+
+    /// The original uv coordinates (parallel to the garment's uv layer).
+    pub fn original_uv(&self) -> &[Vec2] {
+        &self.state.orig
+    }
+
+    /// The current uv coordinates: the rest shape the simulator should use now.
+    pub fn current_uv(&self) -> &[Vec2] {
+        &self.state.cur
+    }
+
+    /// The current uv as a layer (coordinates and the garment's uv triangles), for writing.
+    pub fn current_uv_layer(&self) -> UvLayer {
+        UvLayer {
+            coords: self.state.cur.clone(),
+            triangles: self.mesh.garment.uv().triangles.clone(),
+        }
+    }
+
+    /// Average original uv edge length (the paper's `avg(l)`).
+    pub fn average_edge_length(&self) -> f64 {
+        self.avg_edge
+    }
+
+    /// The red-green thickness `epsilon_RG` in use.
+    pub fn eps_rg(&self) -> f64 {
+        self.eps_rg
+    }
+
+    /// Operations in progress, by id.
+    pub fn operations(&self) -> impl Iterator<Item = &Op> {
+        self.state.ops.values()
+    }
+
+    /// Whether every uv coordinate is back at its original value (no operation in progress).
+    pub fn is_restored(&self) -> bool {
+        self.state.ops.is_empty()
+    }
+
+    /// Every operation so far.
+    pub fn finesse_log(&self) -> &[FinesseRecord] {
+        &self.log
+    }
+
+    /// The Table 1 analogue over the log.
+    pub fn finesse_stats(&self) -> FinesseStats {
+        FinesseStats::of(&self.log)
+    }
+
+    /// uv triangles that are inverted or degenerate now but were not in the input (always empty
+    /// unless something is wrong; exact orientation tests).
+    pub fn inverted_uv_triangles(&self) -> Vec<u32> {
+        let uv = self.mesh.garment.uv();
+        let o = |p: &Vec2| robust::Coord { x: p.x, y: p.y };
+        (0..uv.triangles.len() as u32)
+            .filter(|t| self.mesh.skip.binary_search(t).is_err())
+            .filter(|&t| {
+                let [a, b, c] = uv.triangles[t as usize].map(|i| &self.state.cur[i as usize]);
+                self.mesh.sign[t as usize] * robust::orient2d(o(a), o(b), o(c)) <= 0.0
+            })
+            .collect()
+    }
+
+    /// One uv-space mesh update (Alg. 2) from the analysis of the garment's current positions.
+    /// `am` must have the garment as its first object (vertex and triangle numbers equal to the
+    /// garment's; obstacles may follow); `positions` are the analysed positions (used to name
+    /// the location of stalls).
+    pub fn update_uv(
+        &mut self,
+        am: &AnalysisMesh,
+        analysis: &Analysis,
+        positions: &[Vec3],
+    ) -> Result<UvUpdateReport> {
+        self.check_analysis_mesh(am)?;
+        self.update_uv_with_coloring(&analysis.coloring, Some(positions))
+    }
+
+    /// One update from a colouring over the garment's own vertices, edges (its topology's order)
+    /// and triangles (a colouring of a larger analysis mesh whose first object is the garment is
+    /// accepted too).
+    pub fn update_uv_with_coloring(
+        &mut self,
+        coloring: &Coloring,
+        positions: Option<&[Vec3]>,
+    ) -> Result<UvUpdateReport> {
+        let g = &self.mesh.garment;
+        let (nv, ne, nt) = (
+            g.mesh.positions.len(),
+            g.topology.num_edges(),
+            g.mesh.triangles.len(),
+        );
+        if coloring.red_vertex.len() < nv
+            || coloring.red_edge.len() < ne
+            || coloring.red_triangle.len() < nt
+        {
+            return Err(Error::Parameter(format!(
+                "colouring covers {} vertices, {} edges, {} triangles; the garment has {nv}, {ne}, {nt}",
+                coloring.red_vertex.len(),
+                coloring.red_edge.len(),
+                coloring.red_triangle.len()
+            )));
+        }
+        if let Some(p) = positions {
+            if p.len() < nv {
+                return Err(Error::Parameter(format!(
+                    "{} positions given for a garment of {nv} vertices",
+                    p.len()
+                )));
+            }
+        }
+        let report = self.run_schedule(coloring, positions);
+        self.step += 1;
+        Ok(report)
+    }
+
+    /// The m-CCH contact policy for the step analysed in `analysis` (of `am`); it implements
+    /// [`crate::sim::ContactPolicy`].
+    pub fn contact_policy<'a>(
+        &self,
+        am: &'a AnalysisMesh,
+        analysis: &'a Analysis,
+    ) -> MchPolicy<'a> {
+        MchPolicy::new(am, &analysis.coloring, self.params.eps, self.eps_rg)
+    }
+
+    fn check_analysis_mesh(&self, am: &AnalysisMesh) -> Result<()> {
+        let g = &self.mesh.garment;
+        let ok = am.objects.first().is_some_and(|o| {
+            o.kind == ObjectKind::Cloth
+                && o.vertices == (0..g.mesh.positions.len() as u32)
+                && o.triangles == (0..g.mesh.triangles.len() as u32)
+        }) && am.triangles[..g.mesh.triangles.len()] == g.mesh.triangles[..]
+            && am.topology.edges.get(..g.topology.num_edges()) == Some(&g.topology.edges[..]);
+        if ok {
+            Ok(())
+        } else {
+            Err(Error::Parameter(
+                "the analysis mesh must have the garment as its first object".into(),
+            ))
+        }
+    }
+}
+
+/// Average length of the distinct uv edges.
+fn average_uv_edge_length(g: &Garment) -> f64 {
+    let uv = g.uv();
+    let mut edges: Vec<(u32, u32)> = uv
+        .triangles
+        .iter()
+        .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    let sum: f64 = edges
+        .iter()
+        .map(|&(a, b)| (uv.coords[a as usize] - uv.coords[b as usize]).norm())
+        .sum();
+    sum / edges.len().max(1) as f64
+}

@@ -1,0 +1,138 @@
+//! Parameters of the method (Cha & Ko 2022, Sec. 5.1, 5.3.1 and 9: gamma = 0.8, dt = 0.02 s,
+//! epsilon_RG = 0.1 x average edge length, epsilon_CCD = 1e-6).
+
+use crate::error::{Error, Result};
+
+/// The smallest scale `gamma^level` any operation reaches (a subject edge keeps at least this
+/// fraction of its original uv length).
+pub const MIN_SCALE: f64 = 1e-6;
+
+/// Settings of the uv-space update and the m-CCH contact policy. All have the paper's defaults.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Params {
+    /// Scale factor of one pull / shrink level, `0 < gamma < 1` (Sec. 5.1; paper: 0.8).
+    pub gamma: f64,
+    /// Time step of the simulator the update is used with, in seconds (Sec. 9; paper: 0.02). The
+    /// uv update does not use it; it is carried for the integration loop.
+    pub dt: f64,
+    /// Ordinary collision thickness for green-green pairs (epsilon_CCD, Sec. 5.3.1; paper 1e-6).
+    pub eps: f64,
+    /// epsilon_RG as a multiple of the average rest (uv) edge length (Sec. 5.3.1; paper 0.1).
+    pub eps_rg_factor: f64,
+    /// epsilon_RG as an absolute value; overrides `eps_rg_factor` when set.
+    pub eps_rg: Option<f64>,
+    /// Deepest level of one operation: the rest length of a subject edge never drops below
+    /// `gamma^max_level` of its original length (and never below [`MIN_SCALE`] of it, whatever
+    /// `max_level` says, so that rounding cannot flip a shrunk triangle). An operation that
+    /// reaches it without finishing its finesse is reported as saturated (edge shortening
+    /// hindered, Sec. 5.5) and held there.
+    pub max_level: u32,
+    /// Steps a saturated operation is held before it is abandoned (revoked, and its subject-
+    /// target pair or red* triangle barred for twice as many steps so that another target or
+    /// the triangle across the red edge gets a turn). 0 = hold for ever.
+    pub hold_steps: u32,
+    /// Levels undone per step by a revoke (Sec. 5.1.1 scales by `1/gamma`, i.e. one level).
+    pub revoke_levels_per_step: u32,
+    /// Use the fallbacks (kernel target, shortened anchors) when no fan passes the triangle
+    /// inversion test (Sec. 6.1; the paper's Appendix C is not available). When off, such
+    /// subjects are reported as stalled at once.
+    pub fallback: bool,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            gamma: 0.8,
+            dt: 0.02,
+            eps: 1e-6,
+            eps_rg_factor: 0.1,
+            eps_rg: None,
+            max_level: 15,
+            hold_steps: 20,
+            revoke_levels_per_step: 1,
+            fallback: true,
+        }
+    }
+}
+
+impl Params {
+    /// Checks every value's range.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(Error::Parameter(m));
+        if !(self.gamma > 0.0 && self.gamma < 1.0) {
+            return bad(format!("gamma must be in (0, 1), got {}", self.gamma));
+        }
+        if !(self.dt > 0.0 && self.dt.is_finite()) {
+            return bad(format!("dt must be positive, got {}", self.dt));
+        }
+        if !(self.eps >= 0.0 && self.eps.is_finite()) {
+            return bad(format!("eps must be >= 0, got {}", self.eps));
+        }
+        if !(self.eps_rg_factor >= 0.0 && self.eps_rg_factor.is_finite()) {
+            return bad(format!(
+                "eps_rg_factor must be >= 0, got {}",
+                self.eps_rg_factor
+            ));
+        }
+        if let Some(e) = self.eps_rg {
+            if !(e >= 0.0 && e.is_finite()) {
+                return bad(format!("eps_rg must be >= 0, got {e}"));
+            }
+        }
+        if self.max_level == 0 || self.max_level > 200 {
+            return bad(format!(
+                "max_level must be in 1..=200, got {}",
+                self.max_level
+            ));
+        }
+        if self.revoke_levels_per_step == 0 {
+            return bad("revoke_levels_per_step must be at least 1".into());
+        }
+        Ok(())
+    }
+
+    /// The deepest level an operation reaches: `max_level`, or less if `gamma^max_level` would
+    /// fall below [`MIN_SCALE`].
+    pub fn level_cap(&self) -> u32 {
+        let floor = (MIN_SCALE.ln() / self.gamma.ln()).floor().max(1.0) as u32;
+        self.max_level.min(floor)
+    }
+
+    /// The smallest scale an operation reaches, `gamma^level_cap`.
+    pub fn min_scale(&self) -> f64 {
+        self.gamma.powi(self.level_cap() as i32)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_papers_and_valid() {
+        let p = Params::default();
+        assert_eq!((p.gamma, p.dt, p.eps_rg_factor), (0.8, 0.02, 0.1));
+        p.validate().unwrap();
+        for bad in [0.0, 1.0, -0.5, f64::NAN] {
+            let q = Params {
+                gamma: bad,
+                ..Params::default()
+            };
+            assert!(q.validate().is_err(), "gamma {bad}");
+        }
+        assert!(Params {
+            max_level: 0,
+            ..Params::default()
+        }
+        .validate()
+        .is_err());
+        assert_eq!(p.level_cap(), 15);
+        let half = Params {
+            gamma: 0.5,
+            max_level: 100,
+            ..Params::default()
+        };
+        assert_eq!(half.level_cap(), 19);
+        assert!(half.min_scale() >= MIN_SCALE && half.min_scale() * 0.5 < MIN_SCALE);
+    }
+}

@@ -1,0 +1,358 @@
+//! The simulation loop of Cha & Ko 2022, Fig. 1b: every step, intersection analysis and
+//! colouring (Sec. 3), the uv-space mesh update (Alg. 2), then one simulator step whose
+//! collision handling is the m-CCH policy of the step's colouring (Sec. 5.2-5.3).
+//!
+//! The loop stops when the cloth is free of intersections *and* every uv edit has been revoked
+//! (the garment is back at its original rest shape), when `max_steps` is reached, or when it is
+//! stuck: for `stuck_steps` consecutive steps the cloth still intersects and either the uv
+//! update changed nothing (no operation could start or continue: e.g. only BLI paths) or the
+//! number of intersecting triangle pairs never went below its best so far (operations keep
+//! saturating and being abandoned). Every way of stopping is reported; it never loops silently.
+//!
+//! If the intersection analysis fails on a step (it reports an inconsistency instead of
+//! guessing), the step is recorded with the error, the uv is left as it is, and the simulator
+//! steps with the last good colouring's m-CCH policy (or plain CCH with `eps` on the first step).
+
+use super::report::{FinesseStats, Stall, UvUpdateReport};
+use super::{ChaKo, Params};
+use crate::analysis::{analyze_with, AnalysisMesh, Coloring};
+use crate::error::Result;
+use crate::geom::Vec3;
+use crate::mesh::Garment;
+use crate::sim::{SimParams, Simulator, StepReport, UniformThickness};
+use std::time::Instant;
+
+/// Settings of the loop.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResolveParams {
+    /// The method's parameters (gamma, dt, epsilons, ...); `dt` is the simulator's step.
+    pub cha_ko: Params,
+    /// The simulator's parameters (its `dt` is replaced by `cha_ko.dt`).
+    pub sim: SimParams,
+    /// Step limit.
+    pub max_steps: usize,
+    /// Stop after this many consecutive steps without any uv change, or without a new lowest
+    /// count of intersecting pairs, while intersecting.
+    pub stuck_steps: usize,
+    /// Run the uv-space update (off: m-CCH alone, for ablation experiments).
+    pub uv_update: bool,
+    /// Analysis options. By default BLI paths colour their cone regions red (Wicke's heuristic),
+    /// which goes beyond the paper (Cha & Ko leave BLI out): their vertices are then pulled like
+    /// any red region. With `bli_regions_red = false` a BLI-only tanglement is reported as a
+    /// stall ("nothing to operate on") with its location and the loop stops as stuck.
+    pub analysis: crate::analysis::Options,
+}
+
+impl Default for ResolveParams {
+    fn default() -> Self {
+        ResolveParams {
+            cha_ko: Params::default(),
+            sim: SimParams::default(),
+            max_steps: 2000,
+            stuck_steps: 100,
+            uv_update: true,
+            analysis: crate::analysis::Options {
+                bli_regions_red: true,
+            },
+        }
+    }
+}
+
+/// What one pass of the loop saw and did.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct LoopStep {
+    /// Step number.
+    pub step: u64,
+    /// Intersecting triangle pairs at the start of the step.
+    pub intersecting_pairs: usize,
+    /// Red vertices at the start of the step.
+    pub red_vertices: usize,
+    /// Red triangles at the start of the step.
+    pub red_triangles: usize,
+    /// Tanglements (world-space intersection curves).
+    pub tanglements: usize,
+    /// The uv update.
+    pub uv: UvUpdateReport,
+    /// Whether the simulator's collision handling ended the step with an administrative quit.
+    pub administrative_quit: bool,
+    /// Impact zones the simulator needed.
+    pub impact_zones: usize,
+    /// The analysis error of this step, if it failed (the step then used the previous
+    /// colouring and left the uv alone).
+    pub analysis_error: Option<String>,
+    /// Milliseconds in the analysis, the uv update, the simulator's rest-shape update and the
+    /// simulator step.
+    pub ms_analysis: f64,
+    /// See `ms_analysis`.
+    pub ms_uv: f64,
+    /// See `ms_analysis`.
+    pub ms_rest: f64,
+    /// See `ms_analysis`.
+    pub ms_sim: f64,
+}
+
+/// Why the loop stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// Free of intersections and back at the original rest shape.
+    Resolved,
+    /// Step limit reached.
+    StepLimit,
+    /// No uv change, or no new lowest count of intersecting pairs, for `stuck_steps` steps.
+    Stuck,
+}
+
+/// Summary of a run.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ResolveSummary {
+    /// Why it stopped.
+    pub outcome: Outcome,
+    /// Steps run.
+    pub steps: u64,
+    /// First step at whose start the cloth was free of intersections (and stayed so).
+    pub clean_at: Option<u64>,
+    /// Intersecting pairs and red vertices at the first and the last analysed step.
+    pub initial_pairs: usize,
+    /// See `initial_pairs`.
+    pub initial_red_vertices: usize,
+    /// See `initial_pairs`.
+    pub final_pairs: usize,
+    /// See `initial_pairs`.
+    pub final_red_vertices: usize,
+    /// The Table 1 analogue.
+    pub finesse: FinesseStats,
+    /// Every stall reported during the run.
+    pub stalls: Vec<Stall>,
+    /// Steps that ended with an administrative quit of the collision handling.
+    pub administrative_quits: usize,
+    /// Steps whose intersection analysis failed.
+    pub analysis_errors: usize,
+    /// Mean milliseconds per step of analysis, uv update (with the simulator's rest-shape
+    /// update) and simulation.
+    pub mean_ms: [f64; 3],
+}
+
+/// The loop: a [`ChaKo`] updater and a [`Simulator`] over the same garment.
+pub struct Resolver {
+    chako: ChaKo,
+    sim: Simulator,
+    am: AnalysisMesh,
+    params: ResolveParams,
+    history: Vec<LoopStep>,
+    clean_at: Option<u64>,
+    idle: usize,
+    best_pairs: usize,
+    since_best: usize,
+    last_clean: bool,
+    last_coloring: Option<Coloring>,
+}
+
+impl Resolver {
+    /// A loop for `garment` starting at its current positions, at rest.
+    pub fn new(garment: &Garment, params: ResolveParams) -> Result<Resolver> {
+        let mut sp = params.sim.clone();
+        sp.dt = params.cha_ko.dt;
+        let sim = Simulator::new(garment, sp)?;
+        let chako = ChaKo::new(garment, params.cha_ko.clone())?;
+        let (am, _) = AnalysisMesh::single(&garment.mesh)?;
+        Ok(Resolver {
+            chako,
+            sim,
+            am,
+            params,
+            history: Vec::new(),
+            clean_at: None,
+            idle: 0,
+            best_pairs: usize::MAX,
+            since_best: 0,
+            last_clean: false,
+            last_coloring: None,
+        })
+    }
+
+    /// The uv updater.
+    pub fn chako(&self) -> &ChaKo {
+        &self.chako
+    }
+
+    /// The simulator (pin vertices, add obstacles, read positions).
+    pub fn simulator(&self) -> &Simulator {
+        &self.sim
+    }
+
+    /// Mutable access to the simulator.
+    pub fn simulator_mut(&mut self) -> &mut Simulator {
+        &mut self.sim
+    }
+
+    /// Every step so far.
+    pub fn history(&self) -> &[LoopStep] {
+        &self.history
+    }
+
+    /// Whether the last analysed state was free of intersections and the uv is restored.
+    pub fn is_resolved(&self) -> bool {
+        self.last_clean && self.chako.is_restored()
+    }
+
+    /// One pass of Fig. 1b: analysis, uv update, simulator step with m-CCH. Returns the pass's
+    /// record and the simulator's step report.
+    pub fn step(&mut self) -> Result<(LoopStep, StepReport)> {
+        let t0 = Instant::now();
+        let pos: Vec<Vec3> = self.sim.positions().to_vec();
+        let analysis = analyze_with(&self.am, &pos, &self.params.analysis);
+        let t1 = Instant::now();
+        let ms = |x: Instant, y: Instant| (y - x).as_secs_f64() * 1e3;
+        let a = match analysis {
+            Ok(a) => a,
+            Err(e) => return Ok(self.step_without_analysis(format!("{e:?}"), ms(t0, t1))),
+        };
+        let uv = if self.params.uv_update {
+            self.chako.update_uv(&self.am, &a, &pos)?
+        } else {
+            UvUpdateReport::default()
+        };
+        let t_rest = Instant::now();
+        if uv.uv_changed {
+            self.sim.set_rest_uv(self.chako.current_uv())?;
+        }
+        let t2 = Instant::now();
+        let policy = self.chako.contact_policy(&self.am, &a);
+        let sr = self.sim.step(&policy);
+        let t3 = Instant::now();
+        let clean = a.is_clean();
+        let index = self.history.len() as u64;
+        if clean && self.clean_at.is_none() {
+            self.clean_at = Some(index);
+        } else if !clean {
+            self.clean_at = None;
+        }
+        self.last_clean = clean;
+        self.idle = if !clean && !uv.uv_changed {
+            self.idle + 1
+        } else {
+            0
+        };
+        if a.segments.len() < self.best_pairs {
+            self.best_pairs = a.segments.len();
+            self.since_best = 0;
+        } else {
+            self.since_best += 1;
+        }
+        let rec = LoopStep {
+            step: index,
+            intersecting_pairs: a.segments.len(),
+            red_vertices: a.coloring.num_red_vertices(),
+            red_triangles: a.coloring.num_red_triangles(),
+            tanglements: a.tanglements.len(),
+            uv,
+            administrative_quit: sr.administrative_quit(),
+            impact_zones: sr.collisions.impact_zones,
+            analysis_error: None,
+            ms_analysis: ms(t0, t1),
+            ms_uv: ms(t1, t_rest),
+            ms_rest: ms(t_rest, t2),
+            ms_sim: ms(t2, t3),
+        };
+        self.last_coloring = Some(a.coloring);
+        self.history.push(rec.clone());
+        Ok((rec, sr))
+    }
+
+    /// A step whose analysis failed: no uv update, the last good colouring's policy.
+    fn step_without_analysis(&mut self, error: String, ms_analysis: f64) -> (LoopStep, StepReport) {
+        let t2 = Instant::now();
+        let sr = match &self.last_coloring {
+            Some(c) => {
+                let p = &self.chako.params;
+                let policy = super::MchPolicy::new(&self.am, c, p.eps, self.chako.eps_rg);
+                self.sim.step(&policy)
+            }
+            None => self.sim.step(&UniformThickness(self.chako.params.eps)),
+        };
+        let ms_sim = (Instant::now() - t2).as_secs_f64() * 1e3;
+        let prev = self.history.last();
+        let rec = LoopStep {
+            step: self.history.len() as u64,
+            intersecting_pairs: prev.map_or(0, |s| s.intersecting_pairs),
+            red_vertices: prev.map_or(0, |s| s.red_vertices),
+            red_triangles: prev.map_or(0, |s| s.red_triangles),
+            tanglements: prev.map_or(0, |s| s.tanglements),
+            uv: UvUpdateReport {
+                step: self.chako.steps(),
+                active_ops: self.chako.operations().count(),
+                ..Default::default()
+            },
+            administrative_quit: sr.administrative_quit(),
+            impact_zones: sr.collisions.impact_zones,
+            analysis_error: Some(error),
+            ms_analysis,
+            ms_uv: 0.0,
+            ms_rest: 0.0,
+            ms_sim,
+        };
+        self.last_clean = false;
+        self.idle += 1;
+        self.since_best += 1;
+        self.history.push(rec.clone());
+        (rec, sr)
+    }
+
+    /// Whether the loop should stop before another step, and why (see the module text):
+    /// resolved, stuck, or at the step limit. Callers driving the loop themselves with
+    /// [`Resolver::step`] (to move obstacles or write frames between steps) stop on it.
+    pub fn stop_reason(&self) -> Option<Outcome> {
+        if self.is_resolved() {
+            return Some(Outcome::Resolved);
+        }
+        if !self.history.is_empty()
+            && !self.last_clean
+            && (self.idle >= self.params.stuck_steps || self.since_best >= self.params.stuck_steps)
+        {
+            return Some(Outcome::Stuck);
+        }
+        if self.history.len() >= self.params.max_steps {
+            return Some(Outcome::StepLimit);
+        }
+        None
+    }
+
+    /// Runs until resolved, stuck or `max_steps` (see the module text); `on_step` sees every
+    /// pass (for progress bars and logs).
+    pub fn run(&mut self, mut on_step: impl FnMut(&LoopStep)) -> Result<ResolveSummary> {
+        let outcome = loop {
+            if let Some(o) = self.stop_reason() {
+                break o;
+            }
+            let (rec, _) = self.step()?;
+            on_step(&rec);
+        };
+        Ok(self.summary(outcome))
+    }
+
+    /// The summary of the run so far.
+    pub fn summary(&self, outcome: Outcome) -> ResolveSummary {
+        let h = &self.history;
+        let n = h.len().max(1) as f64;
+        let mean = |f: fn(&LoopStep) -> f64| h.iter().map(f).sum::<f64>() / n;
+        ResolveSummary {
+            outcome,
+            steps: h.len() as u64,
+            clean_at: self.clean_at,
+            initial_pairs: h.first().map_or(0, |s| s.intersecting_pairs),
+            initial_red_vertices: h.first().map_or(0, |s| s.red_vertices),
+            final_pairs: h.last().map_or(0, |s| s.intersecting_pairs),
+            final_red_vertices: h.last().map_or(0, |s| s.red_vertices),
+            finesse: self.chako.finesse_stats(),
+            stalls: h.iter().flat_map(|s| s.uv.stalls.iter().cloned()).collect(),
+            administrative_quits: h.iter().filter(|s| s.administrative_quit).count(),
+            analysis_errors: h.iter().filter(|s| s.analysis_error.is_some()).count(),
+            mean_ms: [
+                mean(|s| s.ms_analysis),
+                mean(|s| s.ms_uv + s.ms_rest),
+                mean(|s| s.ms_sim),
+            ],
+        }
+    }
+}
