@@ -278,6 +278,9 @@ fn tangled(base: &Mesh, level: usize, patches: usize, steps: usize, arcsim_uv: b
     let g = Garment::new(mesh.clone()).expect("garment");
     let params = SimParams {
         gravity: Vec3::zeros(),
+        // As the Cha & Ko loop runs it (`ResolveParams::default`); SIM_BENCH_CLOSE_CONTACTS=1
+        // measures the default contact set instead.
+        contacts_within_reach: std::env::var("SIM_BENCH_CLOSE_CONTACTS").is_err(),
         ..SimParams::default()
     };
     let mut sim = Simulator::new(&g, params).expect("simulator");

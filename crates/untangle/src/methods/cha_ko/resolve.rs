@@ -47,7 +47,11 @@ impl Default for ResolveParams {
     fn default() -> Self {
         ResolveParams {
             cha_ko: Params::default(),
-            sim: SimParams::default(),
+            sim: SimParams {
+                // The loop's cases were validated with every pair within reach as a contact.
+                contacts_within_reach: true,
+                ..SimParams::default()
+            },
             max_steps: 2000,
             stuck_steps: 100,
             uv_update: true,

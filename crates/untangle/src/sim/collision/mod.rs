@@ -342,6 +342,9 @@ pub struct CollisionSettings {
     pub max_zone_iterations: usize,
     /// Run proximity repulsion first.
     pub proximity: bool,
+    /// Resting contacts also include pairs merely within reach of the step's motion (see
+    /// [`crate::sim::SimParams::contacts_within_reach`]).
+    pub contacts_within_reach: bool,
     /// Rebuild the broad-phase hierarchies this step (else refit).
     pub rebuild: bool,
 }
@@ -418,7 +421,8 @@ pub fn handle(
     let n = scene.x0.len();
     let v_start = v.to_vec();
     if settings.proximity {
-        let (applied, resting) = proximity::repel(scene, v, &cands, policy);
+        let (applied, resting) =
+            proximity::repel(scene, v, &cands, policy, settings.contacts_within_reach);
         rep.proximity_impulses = applied;
         rep.resting = resting;
     }

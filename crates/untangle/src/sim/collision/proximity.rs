@@ -30,13 +30,15 @@ struct Near {
 }
 
 /// Applies proximity impulses to `v`; returns the number of impulses applied and the cloth-cloth
-/// pairs that started within twice their thickness or received an impulse (contacts the next
-/// step treats inside the implicit solve, see [`crate::sim::contact`]).
+/// pairs that started within twice their thickness or received an impulse, and with
+/// `within_reach` also those that could come within it during the step (contacts the next step
+/// treats inside the implicit solve, see [`crate::sim::contact`]).
 pub fn repel(
     scene: &Scene,
     v: &mut [Vec3],
     candidates: &[Pair],
     policy: &dyn ContactPolicy,
+    within_reach: bool,
 ) -> (usize, Vec<Pair>) {
     let h = scene.h;
     let near: Vec<Near> = {
@@ -138,7 +140,8 @@ pub fn repel(
         .iter()
         .zip(&impulsed)
         .filter(|(n, &hit)| {
-            matches!(n.pair.kind, PairKind::VertexTriangle | PairKind::EdgeEdge) && (hit || n.close)
+            matches!(n.pair.kind, PairKind::VertexTriangle | PairKind::EdgeEdge)
+                && (hit || n.close || within_reach)
         })
         .map(|(n, _)| n.pair)
         .collect();
