@@ -86,6 +86,9 @@ pub struct GarmentField {
     pub depth_limit: f64,
     /// Width of the band beyond `depth_limit` across which the influence fades out.
     pub depth_fade: f64,
+    /// Fraction of the grid blocks filled exactly, mean over `f` and `h` (1 without the narrow
+    /// band, see [`super::band`]).
+    pub exact_fraction: f64,
     /// Time of each step, in milliseconds: sampling, fit of `f`, fit of `h`, grids.
     pub timing_ms: [f64; 4],
 }
