@@ -137,6 +137,13 @@ fn main() {
                     .map(|r| (r.grid_exact_fraction * 1000.0).round() / 1000.0)
                     .collect::<Vec<_>>()
             );
+            eprintln!(
+                "  field steps per garment (sampling, fit f, fit h, grids; ms) {:?}",
+                out.reports
+                    .iter()
+                    .map(|r| r.field_steps_ms.map(|x| x.round()))
+                    .collect::<Vec<_>>()
+            );
             if std::env::var_os("LAYERS_BENCH_COMPARE").is_some() {
                 let mut full = params.clone();
                 full.fields.narrow_band = !params.fields.narrow_band;

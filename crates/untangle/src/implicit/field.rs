@@ -89,7 +89,8 @@ pub struct GarmentField {
     /// Fraction of the grid blocks filled exactly, mean over `f` and `h` (1 without the narrow
     /// band, see [`super::band`]).
     pub exact_fraction: f64,
-    /// Time of each step, in milliseconds: sampling, fit of `f`, fit of `h`, grids.
+    /// Time of each step, in milliseconds: sampling, fit of `f`, fit of `h` (both fits run side
+    /// by side), grids.
     pub timing_ms: [f64; 4],
 }
 

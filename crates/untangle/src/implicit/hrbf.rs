@@ -89,16 +89,28 @@ impl Hrbf {
         for k in 0..nvp {
             funcs.push((nh + k, None));
         }
+        // One kernel evaluation per pair of points, spread over their functionals' block.
+        let first: Vec<usize> = (0..n)
+            .map(|k| if k < nh { 4 * k } else { 4 * nh + (k - nh) })
+            .collect();
         let mut a = DMatrix::<f64>::zeros(m, m);
-        for (r, &(k, dk)) in funcs.iter().enumerate() {
-            for (c, &(j, dj)) in funcs.iter().enumerate() {
+        for j in 0..n {
+            let cj = first[j];
+            let nj = if j < nh { 4 } else { 1 };
+            for k in 0..n {
+                let rk = first[k];
+                let nk = if k < nh { 4 } else { 1 };
                 let (phi, g, h) = kernel(&(xs[k] - xs[j]));
-                a[(r, c)] = match (dk, dj) {
-                    (None, None) => phi,
-                    (None, Some(e)) => -g[e],
-                    (Some(d), None) => g[d],
-                    (Some(d), Some(e)) => -h[(d, e)],
-                };
+                for dr in 0..nk {
+                    for dc in 0..nj {
+                        a[(rk + dr, cj + dc)] = match (dr, dc) {
+                            (0, 0) => phi,
+                            (0, e) => -g[e - 1],
+                            (d, 0) => g[d - 1],
+                            (d, e) => -h[(d - 1, e - 1)],
+                        };
+                    }
+                }
             }
         }
         let mut p = DMatrix::<f64>::zeros(m, 4);
@@ -267,12 +279,23 @@ impl Hrbf {
     pub fn eval_row_from(&self, start: &Vec3, dx: f64, first: usize, out: &mut [(f64, Vec3)]) {
         #[cfg(target_arch = "x86_64")]
         {
+            if std::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU supports AVX-512F (checked just above).
+                unsafe { self.eval_row_avx512(start, dx, first, out) };
+                return;
+            }
             if std::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU supports AVX2 (checked just above).
                 unsafe { self.eval_row_avx2(start, dx, first, out) };
                 return;
             }
         }
+        self.eval_row_generic(start, dx, first, out);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn eval_row_avx512(&self, start: &Vec3, dx: f64, first: usize, out: &mut [(f64, Vec3)]) {
         self.eval_row_generic(start, dx, first, out);
     }
 

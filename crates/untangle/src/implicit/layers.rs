@@ -102,28 +102,37 @@ pub fn build_field(
         sampling::thin(b, params.boundary_samples)
     };
     let t1 = Instant::now();
-    let f = Hrbf::fit(&surf.points, &surf.normals)
-        .map_err(|e| Error::input(mesh.place(), format!("surface field: {e}")))?;
-    let t2 = Instant::now();
-    let h = if boundary.points.is_empty() {
-        None
-    } else {
-        let (mut vp, mut vv) = sampling::interior_values(mesh, &topo, params.interior_samples);
-        if params.exterior_layers > 0 {
-            let (ep, ev) = sampling::exterior_values(
-                &boundary,
-                &surf,
-                2.0 * surf.spacing,
-                params.exterior_layers,
-            );
-            vp.extend(ep);
-            vv.extend(ev);
-        }
-        Some(
-            Hrbf::fit_mixed(&boundary.points, &boundary.normals, &vp, &vv)
-                .map_err(|e| Error::input(mesh.place(), format!("co-variant field: {e}")))?,
-        )
-    };
+    // The two fits are independent: run them side by side.
+    let ((f, f_ms), (h, h_ms)) = rayon::join(
+        || {
+            let t = Instant::now();
+            let f = Hrbf::fit(&surf.points, &surf.normals)
+                .map_err(|e| Error::input(mesh.place(), format!("surface field: {e}")));
+            (f, t.elapsed().as_secs_f64() * 1e3)
+        },
+        || {
+            let t = Instant::now();
+            if boundary.points.is_empty() {
+                return (Ok(None), 0.0);
+            }
+            let (mut vp, mut vv) = sampling::interior_values(mesh, &topo, params.interior_samples);
+            if params.exterior_layers > 0 {
+                let (ep, ev) = sampling::exterior_values(
+                    &boundary,
+                    &surf,
+                    2.0 * surf.spacing,
+                    params.exterior_layers,
+                );
+                vp.extend(ep);
+                vv.extend(ev);
+            }
+            let h = Hrbf::fit_mixed(&boundary.points, &boundary.normals, &vp, &vv)
+                .map(Some)
+                .map_err(|e| Error::input(mesh.place(), format!("co-variant field: {e}")));
+            (h, t.elapsed().as_secs_f64() * 1e3)
+        },
+    );
+    let (f, h) = (f?, h?);
     let t3 = Instant::now();
     let bbox0 = Aabb::from_points(&mesh.positions);
     let diag = bbox0.extent().norm();
@@ -192,7 +201,7 @@ pub fn build_field(
         depth_limit,
         depth_fade,
         exact_fraction,
-        timing_ms: [ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4)],
+        timing_ms: [ms(t0, t1), f_ms, h_ms, ms(t3, t4)],
     })
 }
 
@@ -271,6 +280,8 @@ pub struct LayerReport {
     pub grid_exact_fraction: f64,
     /// Field precomputation time, ms.
     pub field_ms: f64,
+    /// Its steps, ms: sampling, fit of `f`, fit of `h`, grids.
+    pub field_steps_ms: [f64; 4],
     /// Projection time, ms.
     pub projection_ms: f64,
 }
@@ -479,6 +490,7 @@ pub fn untangle_with_fields(
             grid_nodes: f.f.num_nodes() + f.h.as_ref().map_or(0, |h| h.num_nodes()),
             grid_exact_fraction: f.exact_fraction,
             field_ms: field_ms.get(k).copied().unwrap_or(0.0),
+            field_steps_ms: f.timing_ms,
             projection_ms: ms,
         });
         out.projections.push(pr);
