@@ -105,6 +105,16 @@ impl LayerField for GarmentField {
             keep = 1.0 - s;
             keep_gradient = gradient * (-ds * value.signum() / self.depth_fade);
         }
+        if keep == 0.0 {
+            // Absent by depth: the co-variant field cannot change that (and shares `f`'s grid
+            // box, so it is defined here too).
+            return Some(FieldSample {
+                value,
+                gradient,
+                fade: 1.0,
+                fade_gradient: Vec3::zeros(),
+            });
+        }
         if let Some(h) = &self.h {
             let (hv, hg) = h.sample(p)?;
             if hv > self.h_margin {
