@@ -6,7 +6,9 @@
 //!
 //! Environment: `LAYERS_BENCH_VERBOSE=1` prints, per row, the repair reports, the measured
 //! separations (Table 3 analogue) and the result of the projection alone (a second run with the
-//! repair off); `LAYERS_BENCH_ORDER=pants3,tshirt,...` changes the garments and their order.
+//! repair off); `LAYERS_BENCH_ORDER=pants3,tshirt,...` changes the garments and their order;
+//! `LAYERS_BENCH_FULL_GRID=1` fills the grids exactly everywhere (no narrow band);
+//! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ.
 use std::path::PathBuf;
 use std::time::Instant;
 use untangle::implicit::*;
@@ -47,8 +49,10 @@ fn main() {
                     weight: 1.0,
                 })
                 .collect();
+            let mut params = Params::default();
+            params.fields.narrow_band = std::env::var_os("LAYERS_BENCH_FULL_GRID").is_none();
             let t = Instant::now();
-            let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
+            let out = untangle_layers(Some(&body), &inputs, &params, &|_| {}).unwrap();
             let total = t.elapsed().as_secs_f64();
             let fields: f64 =
                 out.body_field_ms / 1e3 + out.reports.iter().map(|r| r.field_ms).sum::<f64>() / 1e3;
@@ -125,6 +129,55 @@ fn main() {
                 for r in &out.repair {
                     eprintln!("  repair {r:?}");
                 }
+            }
+            eprintln!(
+                "  grid exact fraction per garment {:?}",
+                out.reports
+                    .iter()
+                    .map(|r| (r.grid_exact_fraction * 1000.0).round() / 1000.0)
+                    .collect::<Vec<_>>()
+            );
+            eprintln!(
+                "  field steps per garment (sampling, fit f, fit h, grids; ms) {:?}",
+                out.reports
+                    .iter()
+                    .map(|r| r.field_steps_ms.map(|x| x.round()))
+                    .collect::<Vec<_>>()
+            );
+            if std::env::var_os("LAYERS_BENCH_COMPARE").is_some() {
+                let mut full = params.clone();
+                full.fields.narrow_band = !params.fields.narrow_band;
+                let t = Instant::now();
+                let o2 = untangle_layers(Some(&body), &inputs, &full, &|_| {}).unwrap();
+                let dt = t.elapsed().as_secs_f64();
+                let v2 = verify(Some(&body), &refs, &o2.positions).unwrap();
+                let maxd = out
+                    .positions
+                    .iter()
+                    .flatten()
+                    .zip(o2.positions.iter().flatten())
+                    .map(|(a, b)| (a - b).norm())
+                    .fold(0.0, f64::max);
+                let moved = out
+                    .positions
+                    .iter()
+                    .flatten()
+                    .zip(o2.positions.iter().flatten())
+                    .filter(|(a, b)| a != b)
+                    .count();
+                eprintln!(
+                    "  compare (narrow band {} vs {}): fields {:.2} s vs {:.2} s, max |Δx| {:.3e} m, {} vertices differ; other: between {}, with body {}, self {}",
+                    params.fields.narrow_band,
+                    full.fields.narrow_band,
+                    fields,
+                    o2.body_field_ms / 1e3 + o2.reports.iter().map(|r| r.field_ms).sum::<f64>() / 1e3,
+                    maxd,
+                    moved,
+                    v2.between_layers,
+                    v2.with_body,
+                    v2.self_intersections
+                );
+                let _ = dt;
             }
             let _ = total;
         }

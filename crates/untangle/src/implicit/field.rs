@@ -86,7 +86,11 @@ pub struct GarmentField {
     pub depth_limit: f64,
     /// Width of the band beyond `depth_limit` across which the influence fades out.
     pub depth_fade: f64,
-    /// Time of each step, in milliseconds: sampling, fit of `f`, fit of `h`, grids.
+    /// Fraction of the grid blocks filled exactly, mean over `f` and `h` (1 without the narrow
+    /// band, see [`super::band`]).
+    pub exact_fraction: f64,
+    /// Time of each step, in milliseconds: sampling, fit of `f`, fit of `h` (both fits run side
+    /// by side), grids.
     pub timing_ms: [f64; 4],
 }
 
@@ -100,6 +104,16 @@ impl LayerField for GarmentField {
             let (s, ds) = smoothstep((value.abs() - self.depth_limit) / self.depth_fade);
             keep = 1.0 - s;
             keep_gradient = gradient * (-ds * value.signum() / self.depth_fade);
+        }
+        if keep == 0.0 {
+            // Absent by depth: the co-variant field cannot change that (and shares `f`'s grid
+            // box, so it is defined here too).
+            return Some(FieldSample {
+                value,
+                gradient,
+                fade: 1.0,
+                fade_gradient: Vec3::zeros(),
+            });
         }
         if let Some(h) = &self.h {
             let (hv, hg) = h.sample(p)?;

@@ -89,16 +89,28 @@ impl Hrbf {
         for k in 0..nvp {
             funcs.push((nh + k, None));
         }
+        // One kernel evaluation per pair of points, spread over their functionals' block.
+        let first: Vec<usize> = (0..n)
+            .map(|k| if k < nh { 4 * k } else { 4 * nh + (k - nh) })
+            .collect();
         let mut a = DMatrix::<f64>::zeros(m, m);
-        for (r, &(k, dk)) in funcs.iter().enumerate() {
-            for (c, &(j, dj)) in funcs.iter().enumerate() {
+        for j in 0..n {
+            let cj = first[j];
+            let nj = if j < nh { 4 } else { 1 };
+            for k in 0..n {
+                let rk = first[k];
+                let nk = if k < nh { 4 } else { 1 };
                 let (phi, g, h) = kernel(&(xs[k] - xs[j]));
-                a[(r, c)] = match (dk, dj) {
-                    (None, None) => phi,
-                    (None, Some(e)) => -g[e],
-                    (Some(d), None) => g[d],
-                    (Some(d), Some(e)) => -h[(d, e)],
-                };
+                for dr in 0..nk {
+                    for dc in 0..nj {
+                        a[(rk + dr, cj + dc)] = match (dr, dc) {
+                            (0, 0) => phi,
+                            (0, e) => -g[e - 1],
+                            (d, 0) => g[d - 1],
+                            (d, e) => -h[(d - 1, e - 1)],
+                        };
+                    }
+                }
             }
         }
         let mut p = DMatrix::<f64>::zeros(m, 4);
@@ -259,29 +271,46 @@ impl Hrbf {
     /// bit-identical to [`Hrbf::eval`] per point order of summation, but vectorised: the centres
     /// are the outer loop and a block of points the inner one (with AVX2 when the CPU has it).
     pub fn eval_row(&self, start: &Vec3, dx: f64, out: &mut [(f64, Vec3)]) {
+        self.eval_row_from(start, dx, 0, out);
+    }
+
+    /// Like [`Hrbf::eval_row`] for the points `start + (first + k) * dx * e_x`: part of a row,
+    /// bit-identical to the same points of the whole row.
+    pub fn eval_row_from(&self, start: &Vec3, dx: f64, first: usize, out: &mut [(f64, Vec3)]) {
         #[cfg(target_arch = "x86_64")]
         {
+            if std::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU supports AVX-512F (checked just above).
+                unsafe { self.eval_row_avx512(start, dx, first, out) };
+                return;
+            }
             if std::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU supports AVX2 (checked just above).
-                unsafe { self.eval_row_avx2(start, dx, out) };
+                unsafe { self.eval_row_avx2(start, dx, first, out) };
                 return;
             }
         }
-        self.eval_row_generic(start, dx, out);
+        self.eval_row_generic(start, dx, first, out);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn eval_row_avx512(&self, start: &Vec3, dx: f64, first: usize, out: &mut [(f64, Vec3)]) {
+        self.eval_row_generic(start, dx, first, out);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn eval_row_avx2(&self, start: &Vec3, dx: f64, out: &mut [(f64, Vec3)]) {
-        self.eval_row_generic(start, dx, out);
+    unsafe fn eval_row_avx2(&self, start: &Vec3, dx: f64, first: usize, out: &mut [(f64, Vec3)]) {
+        self.eval_row_generic(start, dx, first, out);
     }
 
     #[inline(always)]
-    fn eval_row_generic(&self, start: &Vec3, dx: f64, out: &mut [(f64, Vec3)]) {
+    fn eval_row_generic(&self, start: &Vec3, dx: f64, first: usize, out: &mut [(f64, Vec3)]) {
         for (b, chunk) in out.chunks_mut(BLOCK).enumerate() {
             let mut px = [0.0f64; BLOCK];
             for (k, x) in px.iter_mut().enumerate() {
-                *x = start.x + ((b * BLOCK + k) as f64) * dx;
+                *x = start.x + ((first + b * BLOCK + k) as f64) * dx;
             }
             let (py, pz) = (start.y, start.z);
             let mut f = [0.0f64; BLOCK];

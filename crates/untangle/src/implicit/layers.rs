@@ -46,6 +46,10 @@ pub struct FieldParams {
     /// Width of the band beyond `depth_limit` across which the influence fades out, relative to
     /// the box diagonal.
     pub depth_fade: f64,
+    /// Fill the grids exactly only in the band where the layer can be present
+    /// (`|f_i| < depth_limit + depth_fade`) and with a signed far-field value elsewhere (see
+    /// [`super::band`]); the body (no depth limit) is always filled exactly.
+    pub narrow_band: bool,
     /// Seed of the sampling.
     pub seed: u64,
 }
@@ -64,6 +68,7 @@ impl Default for FieldParams {
             rim_margin: 0.5,
             rim_fade: 0.04,
             depth_fade: 0.1,
+            narrow_band: true,
             seed: 1,
         }
     }
@@ -97,28 +102,37 @@ pub fn build_field(
         sampling::thin(b, params.boundary_samples)
     };
     let t1 = Instant::now();
-    let f = Hrbf::fit(&surf.points, &surf.normals)
-        .map_err(|e| Error::input(mesh.place(), format!("surface field: {e}")))?;
-    let t2 = Instant::now();
-    let h = if boundary.points.is_empty() {
-        None
-    } else {
-        let (mut vp, mut vv) = sampling::interior_values(mesh, &topo, params.interior_samples);
-        if params.exterior_layers > 0 {
-            let (ep, ev) = sampling::exterior_values(
-                &boundary,
-                &surf,
-                2.0 * surf.spacing,
-                params.exterior_layers,
-            );
-            vp.extend(ep);
-            vv.extend(ev);
-        }
-        Some(
-            Hrbf::fit_mixed(&boundary.points, &boundary.normals, &vp, &vv)
-                .map_err(|e| Error::input(mesh.place(), format!("co-variant field: {e}")))?,
-        )
-    };
+    // The two fits are independent: run them side by side.
+    let ((f, f_ms), (h, h_ms)) = rayon::join(
+        || {
+            let t = Instant::now();
+            let f = Hrbf::fit(&surf.points, &surf.normals)
+                .map_err(|e| Error::input(mesh.place(), format!("surface field: {e}")));
+            (f, t.elapsed().as_secs_f64() * 1e3)
+        },
+        || {
+            let t = Instant::now();
+            if boundary.points.is_empty() {
+                return (Ok(None), 0.0);
+            }
+            let (mut vp, mut vv) = sampling::interior_values(mesh, &topo, params.interior_samples);
+            if params.exterior_layers > 0 {
+                let (ep, ev) = sampling::exterior_values(
+                    &boundary,
+                    &surf,
+                    2.0 * surf.spacing,
+                    params.exterior_layers,
+                );
+                vp.extend(ep);
+                vv.extend(ev);
+            }
+            let h = Hrbf::fit_mixed(&boundary.points, &boundary.normals, &vp, &vv)
+                .map(Some)
+                .map_err(|e| Error::input(mesh.place(), format!("co-variant field: {e}")));
+            (h, t.elapsed().as_secs_f64() * 1e3)
+        },
+    );
+    let (f, h) = (f?, h?);
     let t3 = Instant::now();
     let bbox0 = Aabb::from_points(&mesh.positions);
     let diag = bbox0.extent().norm();
@@ -135,10 +149,46 @@ pub fn build_field(
             (e.x * e.y * e.z / params.max_nodes.max(8) as f64).cbrt()
         }
     };
-    let fg = Grid::build_rows(&bbox, cell, |p, dx, out| f.eval_row(p, dx, out));
-    let hg = h
-        .as_ref()
-        .map(|h| Grid::build_rows(&bbox, cell, |p, dx, out| h.eval_row(p, dx, out)));
+    let depth_limit = if closed {
+        f64::INFINITY
+    } else {
+        params.depth_limit * diag
+    };
+    let depth_fade = (params.depth_fade * diag).max(1e-12);
+    let (fg, hg, exact_fraction) = if params.narrow_band && depth_limit.is_finite() {
+        // Beyond `depth_limit + depth_fade` the layer is absent (fade 1, see `super::field`).
+        let band = depth_limit + depth_fade;
+        let (fg, mask) = Grid::build_band(
+            &bbox,
+            cell,
+            0.0,
+            band,
+            &mesh.positions,
+            |p, dx, first, out| f.eval_row_from(p, dx, first, out),
+        );
+        // `h_i` only matters across its fade band (below it: fully present; beyond: absent).
+        let h_margin = params.rim_margin * boundary.spacing;
+        let rim_fade = (params.rim_fade * diag).max(1e-12);
+        let hg = h.as_ref().map(|h| {
+            Grid::build_band(
+                &bbox,
+                cell,
+                h_margin + 0.5 * rim_fade,
+                0.5 * rim_fade,
+                &[],
+                |p, dx, first, out| h.eval_row_from(p, dx, first, out),
+            )
+        });
+        let hfrac = hg.as_ref().map_or(0.0, |g| g.1.exact_fraction());
+        let parts = 1.0 + hg.is_some() as usize as f64;
+        (fg, hg.map(|g| g.0), (mask.exact_fraction() + hfrac) / parts)
+    } else {
+        let fg = Grid::build_rows(&bbox, cell, |p, dx, out| f.eval_row(p, dx, out));
+        let hg = h
+            .as_ref()
+            .map(|h| Grid::build_rows(&bbox, cell, |p, dx, out| h.eval_row(p, dx, out)));
+        (fg, hg, 1.0)
+    };
     let t4 = Instant::now();
     let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
     Ok(GarmentField {
@@ -148,13 +198,10 @@ pub fn build_field(
         num_boundary_samples: boundary.points.len(),
         h_margin: params.rim_margin * boundary.spacing,
         rim_fade: (params.rim_fade * diag).max(1e-12),
-        depth_limit: if closed {
-            f64::INFINITY
-        } else {
-            params.depth_limit * diag
-        },
-        depth_fade: (params.depth_fade * diag).max(1e-12),
-        timing_ms: [ms(t0, t1), ms(t1, t2), ms(t2, t3), ms(t3, t4)],
+        depth_limit,
+        depth_fade,
+        exact_fraction,
+        timing_ms: [ms(t0, t1), f_ms, h_ms, ms(t3, t4)],
     })
 }
 
@@ -229,8 +276,12 @@ pub struct LayerReport {
     pub boundary_samples: usize,
     /// Grid nodes of its cache.
     pub grid_nodes: usize,
+    /// Fraction of the grid nodes' blocks filled exactly (see [`super::band`]).
+    pub grid_exact_fraction: f64,
     /// Field precomputation time, ms.
     pub field_ms: f64,
+    /// Its steps, ms: sampling, fit of `f`, fit of `h`, grids.
+    pub field_steps_ms: [f64; 4],
     /// Projection time, ms.
     pub projection_ms: f64,
 }
@@ -437,7 +488,9 @@ pub fn untangle_with_fields(
             samples: f.num_samples,
             boundary_samples: f.num_boundary_samples,
             grid_nodes: f.f.num_nodes() + f.h.as_ref().map_or(0, |h| h.num_nodes()),
+            grid_exact_fraction: f.exact_fraction,
             field_ms: field_ms.get(k).copied().unwrap_or(0.0),
+            field_steps_ms: f.timing_ms,
             projection_ms: ms,
         });
         out.projections.push(pr);

@@ -29,6 +29,7 @@
 //! - Garment normals are made consistent and outward (away from the body's centre) before
 //!   fitting, whatever the input winding.
 
+pub mod band;
 pub mod field;
 pub mod grid;
 pub mod hrbf;

@@ -40,8 +40,11 @@ pub struct RepairParams {
     /// Radius of the bump a push spreads over, relative to the thickness rule (see
     /// `bump_rings`).
     pub bump: f64,
-    /// Most rounds of the symmetric phase ([`separate_pairs`]; 0 turns it off).
+    /// Most rounds of the symmetric phase ([`separate_pairs`]) without a new lowest number of
+    /// crossing pairs (0 turns the phase off).
     pub pair_rounds: usize,
+    /// Most rounds of the symmetric phase in all.
+    pub pair_rounds_max: usize,
 }
 
 impl Default for RepairParams {
@@ -52,6 +55,7 @@ impl Default for RepairParams {
             min_step: 1e-4,
             bump: 4.0,
             pair_rounds: 200,
+            pair_rounds_max: 3000,
         }
     }
 }
@@ -78,7 +82,7 @@ pub struct PairRepair {
     pub crossing_pairs: usize,
     /// Rounds run.
     pub rounds: usize,
-    /// Crossing triangle pairs between objects at its end (0 unless the round limit was hit).
+    /// Crossing triangle pairs between objects at its end (0 unless a round limit was hit).
     pub remaining: usize,
     /// Vertices moved at least once.
     pub vertices: usize,
@@ -430,8 +434,19 @@ pub fn separate_pairs(
     };
     let rank = |o: usize| if o == ng { -1 } else { o as i64 };
     let mut moved_ever = vec![false; nvg];
-    for round in 0..params.pair_rounds {
+    // Progress criterion: stop after `pair_rounds` rounds without a new lowest pair count.
+    // The positions with the fewest pairs are kept (the count can rise again while the layers
+    // push each other).
+    let (mut best, mut best_round) = (pairs.len(), 0);
+    let mut best_pos: Option<Vec<Vec3>> = None;
+    for round in 0..params.pair_rounds_max.max(params.pair_rounds) {
         if pairs.is_empty() {
+            break;
+        }
+        if pairs.len() < best {
+            (best, best_round) = (pairs.len(), round);
+            best_pos = Some(pos[..nvg].to_vec());
+        } else if round - best_round >= params.pair_rounds {
             break;
         }
         rep.rounds = round + 1;
@@ -534,6 +549,11 @@ pub fn separate_pairs(
             .collect();
         bvh.refit(&boxes(pos));
         pairs = object_pairs(&tris, &object_of, pos, &bvh, Some(&only));
+    }
+    if !pairs.is_empty() && pairs.len() > best {
+        if let Some(b) = best_pos {
+            pos[..nvg].copy_from_slice(&b);
+        }
     }
     rep.vertices = moved_ever.iter().filter(|&&m| m).count();
     let bvh = Bvh::build(&boxes(pos));

@@ -427,3 +427,72 @@ fn arcsim_weights_and_order_move_the_contact() {
     eprintln!("swapped order: {swapped:?}");
     assert!(swapped != equal);
 }
+
+#[test]
+fn arcsim_narrow_band_grids_do_not_change_the_result() {
+    // The narrow-band grids (`super::band`) against grids filled exactly everywhere, on real
+    // garments: identical nodes inside the bands, the same side beyond them, and the same
+    // untangled positions.
+    let Some(shared) = shared_data() else { return };
+    let (body, g) =
+        crate::scenes::outfit::arcsim_outfit(&shared, &["pants3", "dress3", "tshirt"], 1).unwrap();
+    let band = Params::default();
+    let mut full = band.clone();
+    full.fields.narrow_band = false;
+    let centre = body.positions.iter().sum::<Vec3>() / body.positions.len() as f64;
+    let bf = super::layers::build_field(&body, &centre, true, &band.fields).unwrap();
+    let mut fields = [Vec::new(), Vec::new()];
+    for m in &g {
+        let a = super::layers::build_field(m, &centre, false, &band.fields).unwrap();
+        let b = super::layers::build_field(m, &centre, false, &full.fields).unwrap();
+        assert!(a.exact_fraction < 1.0 && b.exact_fraction == 1.0);
+        let (fb, hb) = (a.depth_limit + a.depth_fade, 0.5 * a.rim_fade);
+        let hl = a.h_margin + hb;
+        let grids = [
+            (&a.f, &b.f, 0.0, fb),
+            (a.h.as_ref().unwrap(), b.h.as_ref().unwrap(), hl, hb),
+        ];
+        for (narrow, exact, level, w) in grids {
+            assert_eq!(narrow.dims, exact.dims);
+            let mut same = 0;
+            for (x, y) in narrow.data.iter().zip(&exact.data) {
+                if x == y {
+                    same += 1;
+                    continue;
+                }
+                let (x, y) = (x[0] as f64 - level, y[0] as f64 - level);
+                assert!(x.abs() >= w && y.abs() >= w, "{}: {x} {y} band {w}", m.name);
+                assert_eq!(x < 0.0, y < 0.0, "{}", m.name);
+            }
+            eprintln!("{}: {same} of {} nodes exact", m.name, narrow.num_nodes());
+            assert!(same < narrow.num_nodes());
+        }
+        fields[0].push(a);
+        fields[1].push(b);
+    }
+    let inputs: Vec<GarmentInput> = g
+        .iter()
+        .map(|mesh| GarmentInput {
+            mesh,
+            thickness: 0.01,
+            weight: 1.0,
+        })
+        .collect();
+    let run = |f: &[super::field::GarmentField]| {
+        super::layers::untangle_with_fields(
+            Some((&body, &bf)),
+            &inputs,
+            f,
+            &[0.0; 3],
+            0.0,
+            &band,
+            &|_| {},
+        )
+        .unwrap()
+    };
+    let (a, b) = (run(&fields[0]), run(&fields[1]));
+    assert_eq!(a.positions, b.positions);
+    let refs: Vec<&crate::mesh::Mesh> = g.iter().collect();
+    let v = verify(Some(&body), &refs, &a.positions).unwrap();
+    assert!(v.between_layers == 0 && v.with_body == 0, "{v:?}");
+}
