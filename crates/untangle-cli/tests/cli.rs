@@ -162,6 +162,10 @@ fn bad_input_gives_one_line_and_exit_2() {
     let o = untangle(&["check", "missing.obj"], d.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("missing.obj"));
+    // The OS reason once, not repeated by the error chain.
+    let text = stderr(&o);
+    assert_eq!(text.lines().count(), 1, "{text}");
+    assert!(text.matches("(os error").count() <= 1, "{text}");
     std::fs::create_dir(d.path().join("adir")).unwrap();
     let o = untangle(&["check", "adir"], d.path());
     assert_eq!(o.status.code(), Some(2));
