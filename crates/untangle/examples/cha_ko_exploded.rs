@@ -39,6 +39,20 @@ fn main() {
         let mut p = ResolveParams::default();
         p.sim.gravity = Vec3::zeros();
         p.max_steps = max_steps as usize;
+        // Parameter experiments: CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA.
+        let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
+        if let Some(v) = env("CHAKO_MAX_LEVEL") {
+            p.cha_ko.max_level = v as u32;
+        }
+        if let Some(v) = env("CHAKO_HOLD") {
+            p.cha_ko.hold_steps = v as u32;
+        }
+        if let Some(v) = env("CHAKO_REVOKE") {
+            p.cha_ko.revoke_levels_per_step = v as u32;
+        }
+        if let Some(v) = env("CHAKO_GAMMA") {
+            p.cha_ko.gamma = v;
+        }
         let t = Instant::now();
         let mut r = Resolver::new(&g, p).expect("resolver");
         let mut reds: Vec<usize> = Vec::new();

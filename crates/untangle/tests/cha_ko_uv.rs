@@ -1127,3 +1127,52 @@ fn random_scenarios_exercise_every_operation() {
     eprintln!("ops {ops} fallbacks {fb} seam {seam} shrinks {shr} stalls {stalls}");
     assert!(ops > 100 && fb > 0 && seam > 10 && shr > 10 && stalls > 0);
 }
+
+#[test]
+fn red_star_triangles_are_not_shrunk_toward_a_loop_vertex() {
+    // CROSS: the two wedges intersect along a segment that starts at the loop vertex, so a red*
+    // triangle at it whose target is the loop vertex can never finish its shrink.
+    use untangle::analysis::{analyze, AnalysisMesh};
+    let scene = untangle::scenes::by_name("cross", None, 1).unwrap();
+    let g = Garment::new(scene.meshes[0].clone()).unwrap();
+    let (am, pos) = AnalysisMesh::single(&g.mesh).unwrap();
+    let a = analyze(&am, &pos).unwrap();
+    let loops: Vec<u32> = a
+        .paths
+        .iter()
+        .flat_map(|p| p.loop_vertices.clone())
+        .collect();
+    assert!(!loops.is_empty());
+    let topo = &g.topology;
+    // Oracle: the target of each red* triangle is its corner off the red edge.
+    let target_of = |t: u32| {
+        let tri = g.mesh.triangles[t as usize];
+        let k = (0..3)
+            .find(|&k| a.coloring.red_edge[topo.triangle_edges[t as usize][k] as usize])
+            .unwrap();
+        tri[(k + 2) % 3]
+    };
+    let at_loop = a
+        .coloring
+        .red_star
+        .iter()
+        .filter(|&&t| loops.contains(&target_of(t)))
+        .count();
+    assert!(
+        at_loop > 0,
+        "the scene has a red* triangle at the loop vertex"
+    );
+    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    let r = ck.update_uv(&am, &a, &pos).unwrap();
+    assert_eq!(r.blocked_loop_target, at_loop);
+    for op in ck.operations().filter(|o| o.kind == OpKind::Shrink) {
+        assert!(!loops.contains(&op.target), "{op:?}");
+    }
+    // A bare colouring knows no paths: the same triangles are shrunk toward the loop vertex.
+    let mut bare = ChaKo::new(&g, Params::default()).unwrap();
+    let rb = bare.update_uv_with_coloring(&a.coloring, None).unwrap();
+    assert_eq!(rb.blocked_loop_target, 0);
+    assert!(bare
+        .operations()
+        .any(|o| o.kind == OpKind::Shrink && loops.contains(&o.target)));
+}

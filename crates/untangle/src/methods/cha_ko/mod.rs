@@ -61,6 +61,9 @@ pub struct ChaKo {
     eps_rg: f64,
     moved: Vec<u64>,
     tabu: std::collections::BTreeMap<schedule::TabuKey, u64>,
+    /// Loop vertices of the step's intersection paths (sorted): a red* triangle is not shrunk
+    /// toward one (see [`schedule`]).
+    loop_vertices: Vec<u32>,
 }
 
 impl ChaKo {
@@ -81,6 +84,7 @@ impl ChaKo {
             eps_rg,
             moved: vec![0; n],
             tabu: Default::default(),
+            loop_vertices: Vec::new(),
             params,
         })
     }
@@ -173,12 +177,24 @@ impl ChaKo {
         positions: &[Vec3],
     ) -> Result<UvUpdateReport> {
         self.check_analysis_mesh(am)?;
-        self.update_uv_with_coloring(&analysis.coloring, Some(positions))
+        let mut lv: Vec<u32> = analysis
+            .paths
+            .iter()
+            .flat_map(|p| p.loop_vertices.iter().copied())
+            .collect();
+        lv.sort_unstable();
+        lv.dedup();
+        self.loop_vertices = lv;
+        let r = self.update_uv_with_coloring(&analysis.coloring, Some(positions));
+        self.loop_vertices.clear();
+        r
     }
 
     /// One update from a colouring over the garment's own vertices, edges (its topology's order)
     /// and triangles (a colouring of a larger analysis mesh whose first object is the garment is
     /// accepted too).
+    /// A bare colouring carries no intersection paths, so no loop vertex is known: red*
+    /// triangles are shrunk toward any target (see [`schedule`]); [`ChaKo::update_uv`] knows them.
     pub fn update_uv_with_coloring(
         &mut self,
         coloring: &Coloring,

@@ -139,6 +139,10 @@ pub struct UvUpdateReport {
     pub blocked_subject: usize,
     /// Candidates (red* triangles, pull targets) skipped because they were recently abandoned.
     pub blocked_tabu: usize,
+    /// Red* triangles not shrunk because their target vertex (the corner opposite the red edge)
+    /// is a loop vertex of an intersection path: the intersection starts at the target, so
+    /// shrinking toward it can never finish (see [`super::schedule`]).
+    pub blocked_loop_target: usize,
     /// Operations abandoned this step.
     pub abandoned: usize,
     /// Candidate targets / shrinks that failed the inversion test.

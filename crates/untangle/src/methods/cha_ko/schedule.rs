@@ -36,6 +36,14 @@
 //!   (revoked like an ended operation) and its subject-target pair, or its red* triangle, is
 //!   barred for `2 hold_steps` steps, so another target or the red* triangle across the same red
 //!   edge is tried; abandonment is reported as a stall.
+//! - A red* triangle whose target (the corner opposite its red edge) is a *loop vertex* of an
+//!   intersection path is not shrunk (ours; LL, EIGHT, CROSS have loop vertices). The EE-type
+//!   finesse (Sec. 5.3, proof in Sec. 7, Fig. 11b) needs the penetrating edge to be held
+//!   `eps_RG` away from the target's edges; at a loop vertex the triangle intersects another
+//!   triangle *of the same fan*, along a segment that starts at the target itself. Shrinking
+//!   toward the target scales that segment but never removes it: the operation can only
+//!   saturate (it did, and held the LL case stuck). Such triangles are left to the pulls of the
+//!   red region around them and to the red* triangle across the same red edge.
 //! - Sec. 6.1 (no TIT-passable fan): a candidate whose every proposal fails the test yields its
 //!   turn (lines 4 and 8). After both loops, such candidates whose subjects and fans are still
 //!   untouched get a fallback operation ([`super::fallback`]), so a regular operation always has
@@ -71,6 +79,7 @@ impl ChaKo {
             step,
             moved,
             tabu,
+            loop_vertices,
             ..
         } = self;
         let step = *step;
@@ -129,6 +138,10 @@ impl ChaKo {
                 continue;
             };
             let (j, kk, i) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+            if loop_vertices.binary_search(&i).is_ok() {
+                rep.blocked_loop_target += 1;
+                continue;
+            }
             if moved[j as usize] == stamp || moved[kk as usize] == stamp {
                 rep.blocked_subject += 1;
                 continue;
@@ -301,6 +314,8 @@ impl ChaKo {
             }
             let op = &state.ops[&id];
             let (warranted, finished) = warranted(mesh, op, col);
+            let warranted = warranted
+                && !(op.kind == OpKind::Shrink && loop_vertices.binary_search(&op.target).is_ok());
             if warranted && log[id as usize].end.is_none() {
                 rep.paused += 1;
                 continue;

@@ -1,0 +1,101 @@
+//! Diagnostic: runs the Cha & Ko loop on a named scene and, at the listed steps, prints the
+//! red* triangles, their red edges, the crossings they take part in and the operations.
+//!
+//! `cargo run --release -p untangle --example cha_ko_inspect -- cross 20,60,100`
+use untangle::analysis::{analyze, AnalysisMesh, ObjectKind};
+use untangle::geom::Vec3;
+use untangle::mesh::Garment;
+use untangle::methods::cha_ko::{ResolveParams, Resolver};
+
+fn main() {
+    let which = std::env::args().nth(1).unwrap_or("cross".into());
+    let at: Vec<usize> = std::env::args()
+        .nth(2)
+        .unwrap_or("20".into())
+        .split(',')
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let scene = untangle::scenes::by_name(&which, None, 1).unwrap();
+    let parts: Vec<_> = scene
+        .meshes
+        .iter()
+        .map(|m| (m, ObjectKind::Cloth))
+        .collect();
+    let (am2, pos) = AnalysisMesh::new(&parts).unwrap();
+    let g = Garment::new(am2.merged(&pos, &scene.meshes.iter().collect::<Vec<_>>())).unwrap();
+    let mut p = ResolveParams::default();
+    p.sim.gravity = Vec3::zeros();
+    let mut r = Resolver::new(&g, p).unwrap();
+    let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
+    let topo = &g.topology;
+    let last = *at.iter().max().unwrap();
+    for i in 0..=last {
+        if at.contains(&i) {
+            let pos = r.simulator().positions().to_vec();
+            let a = analyze(&am, &pos).unwrap();
+            let c = &a.coloring;
+            println!(
+                "=== step {i}: pairs {} red v {} outmost {:?} red* {:?}",
+                a.segments.len(),
+                c.num_red_vertices(),
+                c.outmost_red,
+                c.red_star
+            );
+            for path in &a.paths {
+                println!("path {:?} loops {:?}", path.kind, path.loop_vertices);
+            }
+            for cr in &a.crossings {
+                let e = topo.edges[cr.edge as usize];
+                let t = g.mesh.triangles[cr.triangle as usize];
+                println!(
+                    "  crossing edge {}{:?} [{}{}] through tri {}{:?} [{}{}{}]",
+                    cr.edge,
+                    e,
+                    c.red_vertex[e[0] as usize] as u8,
+                    c.red_vertex[e[1] as usize] as u8,
+                    cr.triangle,
+                    t,
+                    c.red_vertex[t[0] as usize] as u8,
+                    c.red_vertex[t[1] as usize] as u8,
+                    c.red_vertex[t[2] as usize] as u8,
+                );
+            }
+            for op in r.chako().operations() {
+                println!(
+                    "  op {:?} subj {:?} target {} tri {} level {}",
+                    op.kind, op.subjects, op.target, op.triangle, op.level
+                );
+                let mut vs = op.subjects.clone();
+                vs.push(op.target);
+                for &s in &op.subjects {
+                    let w = (pos[s as usize] - pos[op.target as usize]).norm();
+                    let cu = r.chako().current_uv();
+                    let ou = r.chako().original_uv();
+                    let rest = (cu[s as usize] - cu[op.target as usize]).norm();
+                    let orig = (ou[s as usize] - ou[op.target as usize]).norm();
+                    println!(
+                        "    {s}-{}: world {w:.4} rest {rest:.4} orig {orig:.4}",
+                        op.target
+                    );
+                }
+            }
+            println!("  eps_rg {:.4}", r.chako().eps_rg());
+        }
+        let (st, sr) = r.step().unwrap();
+        if at.contains(&i) {
+            println!(
+                "  step: pulls +{} ~{} shrinks +{} ~{} rev {} | springs {} prox {} imp {} zones {} stalled {}",
+                st.uv.pulls_started,
+                st.uv.pulls_continued,
+                st.uv.shrinks_started,
+                st.uv.shrinks_continued,
+                st.uv.revoked_levels,
+                sr.contact_springs,
+                sr.collisions.proximity_impulses,
+                sr.collisions.impulses,
+                sr.collisions.impact_zones,
+                sr.collisions.stalled
+            );
+        }
+    }
+}
