@@ -1,3 +1,10 @@
+//! One run of the Cha & Ko loop (Fig. 1b) on a named scene, printing every step (pairs,
+//! tanglements, red vertices/triangles, operations, stalls, impact zones, milliseconds) and the
+//! summary as JSON. Used for the rudimentary-case and ablation tables of BENCHMARKS.md.
+//!
+//! `cargo run --release -p untangle --example cha_ko_try -- NAME [SIZE] [SEED] [MAX_LEVEL] [HOLD]`
+//! with NAME a scene of `untangle scene` (`closed`, `ll`, `eight`, `cross`, `bbii`, `bibi`, `bli`)
+//! or `exploded` (SIZE = cells per side); env `MAX_STEPS`, `STUCK`, and `NO_UV=1` (m-CCH alone).
 use untangle::analysis::{AnalysisMesh, ObjectKind};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
