@@ -8,10 +8,26 @@
 //! separations (Table 3 analogue) and the result of the projection alone (a second run with the
 //! repair off); `LAYERS_BENCH_ORDER=pants3,tshirt,...` changes the garments and their order;
 //! `LAYERS_BENCH_FULL_GRID=1` fills the grids exactly everywhere (no narrow band);
+//! `LAYERS_BENCH_ROWS=4:4,3:2` runs only these (subdivision : garments) rows;
 //! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ.
 use std::path::PathBuf;
 use std::time::Instant;
+use untangle::implicit::layers::Stage;
 use untangle::implicit::*;
+
+/// CPU time (user + system, all threads) of this process so far, seconds (Linux `/proc`; 0
+/// elsewhere). The machine is shared, so CPU time is reported beside wall-clock time.
+fn cpu_s() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // Fields after the command name (which is in parentheses): state is field 3, utime 14,
+    // stime 15, in clock ticks (100 per second on Linux).
+    let rest = &stat[stat.rfind(')').map_or(0, |i| i + 1)..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let tick = |i: usize| f.get(i - 3).and_then(|x| x.parse::<f64>().ok()).unwrap_or(0.0);
+    (tick(14) + tick(15)) / 100.0
+}
 
 fn main() {
     let max_level: usize = std::env::args()
@@ -39,6 +55,12 @@ fn main() {
             if level < max_level && k < all.len() {
                 continue;
             }
+            if let Ok(rows) = std::env::var("LAYERS_BENCH_ROWS") {
+                // LAYERS_BENCH_ROWS=4:4,3:2 — only these (subdivision : garments) rows.
+                if !rows.split(',').any(|r| r == format!("{level}:{k}")) {
+                    continue;
+                }
+            }
             let (body, garments) =
                 untangle::scenes::outfit::arcsim_outfit(&shared, &all[..k], level).expect("data");
             let inputs: Vec<GarmentInput> = garments
@@ -51,8 +73,23 @@ fn main() {
                 .collect();
             let mut params = Params::default();
             params.fields.narrow_band = std::env::var_os("LAYERS_BENCH_FULL_GRID").is_none();
+            if let Some(x) = std::env::var("LAYERS_BENCH_RELAX_SKIP").ok().and_then(|s| s.parse().ok()) {
+                params.projection.relax_skip = x;
+            }
+            if std::env::var_os("LAYERS_BENCH_NO_ACTIVE_SET").is_some() {
+                params.projection.active_set = false;
+            }
             let t = Instant::now();
-            let out = untangle_layers(Some(&body), &inputs, &params, &|_| {}).unwrap();
+            // CPU time at the start, when the fields are done, and at the last projection pass.
+            let cpu = std::sync::Mutex::new([cpu_s(), 0.0, 0.0]);
+            let out = untangle_layers(Some(&body), &inputs, &params, &|s| match s {
+                Stage::Field { done, total } if done == total => cpu.lock().unwrap()[1] = cpu_s(),
+                Stage::Projection { .. } => cpu.lock().unwrap()[2] = cpu_s(),
+                _ => {}
+            })
+            .unwrap();
+            let [c0, c1, c2] = *cpu.lock().unwrap();
+            let c3 = cpu_s();
             let total = t.elapsed().as_secs_f64();
             let fields: f64 =
                 out.body_field_ms / 1e3 + out.reports.iter().map(|r| r.field_ms).sum::<f64>() / 1e3;
@@ -73,6 +110,13 @@ fn main() {
                 v.with_body,
                 v_in.self_intersections,
                 v.self_intersections
+            );
+            eprintln!(
+                "  CPU time (s): fields {:.2}, projection {:.2}, repair {:.2}; wall projection + repair {:.2}",
+                c1 - c0,
+                c2 - c1,
+                c3 - c2,
+                (out.projection_ms + out.repair_ms) / 1e3
             );
             if std::env::var_os("LAYERS_BENCH_VERBOSE").is_some() {
                 eprintln!(
@@ -130,6 +174,11 @@ fn main() {
                     eprintln!("  repair {r:?}");
                 }
             }
+            eprintln!(
+                "  evaluations per garment {:?}, repair pairs {:?}",
+                out.projections.iter().map(|p| p.evaluations).collect::<Vec<_>>(),
+                out.pair_repair
+            );
             eprintln!(
                 "  grid exact fraction per garment {:?}",
                 out.reports

@@ -287,7 +287,11 @@ pub fn repair(
         rep.vertices = total.iter().filter(|&&x| x > 0.0).count();
         rep.max_push = total.iter().copied().fold(0.0, f64::max);
     }
+    let t_pairs = std::time::Instant::now();
     let pairs = separate_pairs(body, layers, &mut pos, &starts, &rings, params);
+    if std::env::var_os("UNTANGLE_REPAIR_TRACE").is_some() {
+        eprintln!("repair: pair phase {:.0} ms; {reports:?}", t_pairs.elapsed().as_secs_f64() * 1e3);
+    }
     for (k, l) in layers.iter().enumerate() {
         let base = starts[k] as usize;
         positions[k].copy_from_slice(&pos[base..base + l.mesh.positions.len()]);
@@ -318,8 +322,16 @@ fn bump_rings(layers: &[RepairLayer], params: &RepairParams) -> Vec<usize> {
 /// Spreads the displacements of the `seeds` (already in `disp`, marked in `set`) over `rings`
 /// rings of neighbours in `topo`: a vertex first reached at ring `r` takes its parent's
 /// displacement scaled so that it is `(1 − r/(rings+1))²` of the seed's (a smooth bump).
-fn spread(topo: &Topology, disp: &mut [Vec3], set: &mut [bool], seeds: Vec<usize>, rings: usize) {
+/// Returns the vertices reached (seeds included).
+fn spread(
+    topo: &Topology,
+    disp: &mut [Vec3],
+    set: &mut [bool],
+    seeds: Vec<usize>,
+    rings: usize,
+) -> Vec<usize> {
     let fall = |r: usize| (1.0 - r as f64 / (rings + 1) as f64).powi(2);
+    let mut reached = seeds.clone();
     let mut frontier = seeds;
     for r in 1..=rings {
         let ratio = fall(r) / fall(r - 1);
@@ -334,8 +346,10 @@ fn spread(topo: &Topology, disp: &mut [Vec3], set: &mut [bool], seeds: Vec<usize
                 }
             }
         }
+        reached.extend_from_slice(&next);
         frontier = next;
     }
+    reached
 }
 
 /// Global triangle ids of the crossing pairs (`a < b`) between different objects among the
@@ -398,21 +412,31 @@ pub fn separate_pairs(
     let nvg: usize = layers.iter().map(|l| l.mesh.positions.len()).sum();
     let mut tris: Vec<[u32; 3]> = Vec::new();
     let mut object_of: Vec<u32> = Vec::new();
+    // First triangle of every object (garments in order, then the body), and one past the end.
+    let mut tri_start: Vec<u32> = Vec::with_capacity(ng + 2);
     for (k, l) in layers.iter().enumerate() {
+        tri_start.push(tris.len() as u32);
         tris.extend(l.mesh.triangles.iter().map(|t| t.map(|v| v + starts[k])));
         object_of.resize(tris.len(), k as u32);
     }
+    tri_start.push(tris.len() as u32);
     if let Some((b, _)) = body {
         tris.extend(b.triangles.iter().map(|t| t.map(|v| v + nvg as u32)));
         object_of.resize(tris.len(), ng as u32);
+        tri_start.push(tris.len() as u32);
     }
-    let boxes = |pos: &[Vec3]| -> Vec<Aabb> {
-        tris.par_iter()
-            .map(|t| Aabb::from_points(t.iter().map(|&v| &pos[v as usize])))
+    let nobj = tri_start.len() - 1;
+    let box_of = |t: usize, pos: &[Vec3]| Aabb::from_points(tris[t].iter().map(|&v| &pos[v as usize]));
+    let all_boxes = |pos: &[Vec3]| -> Vec<Aabb> {
+        (0..tris.len())
+            .into_par_iter()
+            .map(|t| box_of(t, pos))
             .collect()
     };
-    let mut bvh = Bvh::build(&boxes(pos));
+    let mut boxes = all_boxes(pos);
+    let bvh = Bvh::build(&boxes);
     let mut pairs = object_pairs(&tris, &object_of, pos, &bvh, None);
+    drop(bvh);
     rep.crossing_pairs = pairs.len();
     rep.remaining = pairs.len();
     if params.pair_rounds == 0 || pairs.is_empty() {
@@ -433,7 +457,26 @@ pub fn separate_pairs(
         }
     };
     let rank = |o: usize| if o == ng { -1 } else { o as i64 };
+    // Incremental broad phase: one static BVH per object over the triangles as they were at the
+    // start (exact for the triangles that never moved), and one BVH over the triangles that
+    // moved at least once (`dynamic`), rebuilt every round. A pair that can appear has a
+    // triangle moved this round; it is found against the static BVHs of the other objects
+    // (skipping moved triangles, whose static boxes are stale) and against the dynamic BVH.
+    let statics: Vec<Bvh> = (0..nobj)
+        .into_par_iter()
+        .map(|o| Bvh::build(&boxes[tri_start[o] as usize..tri_start[o + 1] as usize]))
+        .collect();
+    let mut dynamic = vec![false; tris.len()];
+    let mut dynamic_list: Vec<u32> = Vec::new();
+    // Reused per-round buffers, cleared through the lists of what was touched.
+    let mut acc = vec![Vec3::zeros(); nvg];
+    let mut count = vec![0u32; nvg];
+    let mut disp = vec![Vec3::zeros(); nvg];
+    let mut set = vec![false; nvg];
+    let mut pressed = vec![false; tris.len()];
+    let mut moved_tri = vec![false; tris.len()];
     let mut moved_ever = vec![false; nvg];
+    let mut trace = [0.0f64; 5];
     // Progress criterion: stop after `pair_rounds` rounds without a new lowest pair count.
     // The positions with the fewest pairs are kept (the count can rise again while the layers
     // push each other).
@@ -450,9 +493,9 @@ pub fn separate_pairs(
             break;
         }
         rep.rounds = round + 1;
+        let tr0 = std::time::Instant::now();
         // Triangles that cross a layer further in: they do not move in (the stack expands
         // outwards from the body instead of squeezing the layers in between).
-        let mut pressed = vec![false; tris.len()];
         for &(a, b) in &pairs {
             let (a, b) = (a as usize, b as usize);
             if rank(object_of[a] as usize) < rank(object_of[b] as usize) {
@@ -501,27 +544,35 @@ pub fn separate_pairs(
                 (lo, hi, n, 1.0 - share_hi, share_hi)
             })
             .collect();
-        let mut acc = vec![Vec3::zeros(); nvg];
-        let mut count = vec![0u32; nvg];
+        for &(a, b) in &pairs {
+            pressed[a as usize] = false;
+            pressed[b as usize] = false;
+        }
+        let mut seeds_all: Vec<usize> = Vec::new();
         for &(lo, hi, n, sl, sh) in &moves {
             for (t, d) in [(hi, n * sh), (lo, -n * sl)] {
                 for &v in &tris[t] {
                     let v = v as usize;
                     if v < nvg {
+                        if count[v] == 0 {
+                            seeds_all.push(v);
+                        }
                         acc[v] += d;
                         count[v] += 1;
                     }
                 }
             }
         }
+        seeds_all.sort_unstable();
         // Displacements, with the bump over the rings of every layer.
-        let mut disp = vec![Vec3::zeros(); nvg];
-        let mut set = vec![false; nvg];
+        let mut touched: Vec<usize> = Vec::new();
         for (k, l) in layers.iter().enumerate() {
             let base = starts[k] as usize;
             let nv = l.mesh.positions.len();
             let step = (params.step * l.separation).max(params.min_step);
-            let seeds: Vec<usize> = (0..nv).filter(|&v| count[base + v] > 0).collect();
+            let lo = seeds_all.partition_point(|&v| v < base);
+            let hi = seeds_all.partition_point(|&v| v < base + nv);
+            let seeds: Vec<usize> = seeds_all[lo..hi].iter().map(|&v| v - base).collect();
             if seeds.is_empty() {
                 continue;
             }
@@ -530,25 +581,107 @@ pub fn separate_pairs(
                 d[v] = acc[base + v] * (step / count[base + v] as f64);
                 s[v] = true;
             }
-            spread(l.topo, d, s, seeds, rings[k]);
+            let reached = spread(l.topo, d, s, seeds, rings[k]);
+            touched.extend(reached.into_iter().map(|v| v + base));
         }
-        let mut moved_tris = vec![false; tris.len()];
-        for v in 0..nvg {
-            if set[v] && disp[v] != Vec3::zeros() {
+        for &v in &seeds_all {
+            acc[v] = Vec3::zeros();
+            count[v] = 0;
+        }
+        // Apply, and collect the triangles of the moved vertices.
+        let mut moved_list: Vec<u32> = Vec::new();
+        for &v in &touched {
+            if disp[v] != Vec3::zeros() {
                 pos[v] += disp[v];
                 moved_ever[v] = true;
             }
-        }
-        for (t, tri) in tris.iter().enumerate() {
-            if tri.iter().any(|&v| (v as usize) < nvg && set[v as usize]) {
-                moved_tris[t] = true;
+            let k = starts.partition_point(|&s| s as usize <= v) - 1;
+            let lv = v - starts[k] as usize;
+            for &t in layers[k].topo.vertex_triangles.row(lv) {
+                let t = (t + tri_start[k]) as usize;
+                if !moved_tri[t] {
+                    moved_tri[t] = true;
+                    moved_list.push(t as u32);
+                }
             }
         }
-        let only: Vec<u32> = (0..tris.len() as u32)
-            .filter(|&t| moved_tris[t as usize])
-            .collect();
-        bvh.refit(&boxes(pos));
-        pairs = object_pairs(&tris, &object_of, pos, &bvh, Some(&only));
+        for &v in &touched {
+            disp[v] = Vec3::zeros();
+            set[v] = false;
+        }
+        moved_list.sort_unstable();
+        for &t in &moved_list {
+            moved_tri[t as usize] = false;
+            boxes[t as usize] = box_of(t as usize, pos);
+            if !dynamic[t as usize] {
+                dynamic[t as usize] = true;
+                dynamic_list.push(t);
+            }
+        }
+        dynamic_list.sort_unstable();
+        let tr1 = std::time::Instant::now();
+        // Per object: its moved triangles and its dynamic triangles, each with a BVH.
+        let split = |list: &[u32]| -> Vec<(Vec<u32>, Bvh)> {
+            (0..nobj)
+                .into_par_iter()
+                .map(|o| {
+                    let lo = list.partition_point(|&t| t < tri_start[o]);
+                    let hi = list.partition_point(|&t| t < tri_start[o + 1]);
+                    let ids = list[lo..hi].to_vec();
+                    let b: Vec<Aabb> = ids.iter().map(|&t| boxes[t as usize]).collect();
+                    (ids, Bvh::build(&b))
+                })
+                .collect()
+        };
+        let moved_by = split(&moved_list);
+        let dyn_by = split(&dynamic_list);
+        let tr2 = std::time::Instant::now();
+        let pos_ro: &[Vec3] = pos;
+        let test = |a: usize, b: usize| {
+            let (ta, tb) = (tris[a], tris[b]);
+            triangles_may_intersect(
+                &ta.map(|v| pos_ro[v as usize]),
+                &tb.map(|v| pos_ro[v as usize]),
+            ) && triangles_intersect(ta, tb, pos_ro)
+        };
+        pairs = Vec::new();
+        for (o, (mids, mb)) in moved_by.iter().enumerate() {
+            if mids.is_empty() {
+                continue;
+            }
+            for o2 in 0..nobj {
+                if o2 == o {
+                    continue;
+                }
+                let base = tri_start[o2];
+                pairs.extend(mb.cross_pairs(&statics[o2], |i, j, out| {
+                    let (a, b) = (mids[i as usize] as usize, (j + base) as usize);
+                    if !dynamic[b] && test(a, b) {
+                        out.push((a.min(b) as u32, a.max(b) as u32));
+                    }
+                }));
+                let (dids, db) = &dyn_by[o2];
+                if !dids.is_empty() {
+                    pairs.extend(mb.cross_pairs(db, |i, j, out| {
+                        let (a, b) = (mids[i as usize] as usize, dids[j as usize] as usize);
+                        if test(a, b) {
+                            out.push((a.min(b) as u32, a.max(b) as u32));
+                        }
+                    }));
+                }
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        let tr3 = std::time::Instant::now();
+        trace[0] += (tr1 - tr0).as_secs_f64() * 1e3;
+        trace[1] += (tr2 - tr1).as_secs_f64() * 1e3;
+        trace[2] += (tr3 - tr2).as_secs_f64() * 1e3;
+        trace[3] += moved_list.len() as f64;
+        trace[4] += dynamic_list.len() as f64;
+    }
+    if std::env::var_os("UNTANGLE_REPAIR_TRACE").is_some() {
+        eprintln!("pair rounds: moves {:.0} ms, dyn bvh {:.0} ms, queries {:.0} ms, moved tris {}, dynamic {}", trace[0], trace[1], trace[2], trace[3], trace[4]);
     }
     if !pairs.is_empty() && pairs.len() > best {
         if let Some(b) = best_pos {
@@ -556,7 +689,7 @@ pub fn separate_pairs(
         }
     }
     rep.vertices = moved_ever.iter().filter(|&&m| m).count();
-    let bvh = Bvh::build(&boxes(pos));
+    let bvh = Bvh::build(&all_boxes(pos));
     rep.remaining = object_pairs(&tris, &object_of, pos, &bvh, None).len();
     rep
 }
