@@ -25,7 +25,11 @@ fn cpu_s() -> f64 {
     // stime 15, in clock ticks (100 per second on Linux).
     let rest = &stat[stat.rfind(')').map_or(0, |i| i + 1)..];
     let f: Vec<&str> = rest.split_whitespace().collect();
-    let tick = |i: usize| f.get(i - 3).and_then(|x| x.parse::<f64>().ok()).unwrap_or(0.0);
+    let tick = |i: usize| {
+        f.get(i - 3)
+            .and_then(|x| x.parse::<f64>().ok())
+            .unwrap_or(0.0)
+    };
     (tick(14) + tick(15)) / 100.0
 }
 
@@ -73,7 +77,10 @@ fn main() {
                 .collect();
             let mut params = Params::default();
             params.fields.narrow_band = std::env::var_os("LAYERS_BENCH_FULL_GRID").is_none();
-            if let Some(x) = std::env::var("LAYERS_BENCH_RELAX_SKIP").ok().and_then(|s| s.parse().ok()) {
+            if let Some(x) = std::env::var("LAYERS_BENCH_RELAX_SKIP")
+                .ok()
+                .and_then(|s| s.parse().ok())
+            {
                 params.projection.relax_skip = x;
             }
             if std::env::var_os("LAYERS_BENCH_NO_ACTIVE_SET").is_some() {
@@ -176,7 +183,10 @@ fn main() {
             }
             eprintln!(
                 "  evaluations per garment {:?}, repair pairs {:?}",
-                out.projections.iter().map(|p| p.evaluations).collect::<Vec<_>>(),
+                out.projections
+                    .iter()
+                    .map(|p| p.evaluations)
+                    .collect::<Vec<_>>(),
                 out.pair_repair
             );
             eprintln!(

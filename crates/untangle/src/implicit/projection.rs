@@ -316,7 +316,7 @@ impl Default for ProjectionParams {
             detail_share: 0.5,
             prevent_flips: true,
             active_set: true,
-            relax_skip: 1.0,
+            relax_skip: 10.0,
         }
     }
 }
@@ -423,6 +423,7 @@ pub fn project_from(
     let mut pos = start.to_vec();
     let mut moved = vec![false; nv];
     let mut zone = vec![false; nv];
+    let mut zone_list: Vec<usize> = Vec::new();
     let mut run = vec![(i, i); nv];
     let mut active = vec![0u32; nv];
     let mut residual = vec![0.0; nv];
@@ -492,6 +493,8 @@ pub fn project_from(
             })
             .collect();
         let mut any = false;
+        let mut newly = Vec::new();
+        let mut changed = Vec::new();
         for (v, s) in step {
             evaluated[v] = true;
             // Undefined there: evaluated again next time (NaN never compares equal).
@@ -505,7 +508,11 @@ pub fn project_from(
                 last[v] = res;
                 if p != pos[v] {
                     any = true;
+                    if !moved[v] {
+                        newly.push(v);
+                    }
                     moved[v] = true;
+                    changed.push(v);
                 }
                 pos[v] = p;
                 if nrm != Vec3::zeros() {
@@ -516,38 +523,58 @@ pub fn project_from(
                 residual[v] = res;
             }
         }
-        // The zone: moved vertices, dilated.
-        let mut z: Vec<bool> = moved.clone();
+        // The zone: moved vertices, dilated (`moved` only grows, so the zone grows by the
+        // dilation of the newly moved vertices).
+        // Ball of `zone_rings` rings around them.
+        let mut ball = newly;
+        let mut frontier = ball.clone();
         for _ in 0..params.zone_rings {
-            let prev = z.clone();
-            for v in 0..nv {
-                if prev[v] {
-                    for &u in topo.vertex_neighbors.row(v) {
-                        z[u as usize] = true;
-                    }
-                }
+            let mut ring: Vec<usize> = frontier
+                .iter()
+                .flat_map(|&v| topo.vertex_neighbors.row(v).iter().map(|&u| u as usize))
+                .collect();
+            ring.sort_unstable();
+            ring.dedup();
+            ball.extend_from_slice(&ring);
+            frontier = ring;
+        }
+        let mut grew = false;
+        for v in ball {
+            if !zone[v] {
+                zone[v] = true;
+                zone_list.push(v);
+                grew = true;
             }
         }
-        zone = z;
+        if grew {
+            zone_list.sort_unstable();
+        }
         progress(it + 1);
         let mut relaxed = 0.0f64;
         let before = pos.clone();
         if it < params.relax_iterations && params.relaxation > 0.0 {
-            let (p, d) = relax(
+            let moves = relax(
                 &pos,
                 &normal,
-                &zone,
+                &zone_list,
                 &|v| movable(v) && evaluated[v],
                 topo,
                 rest,
                 params.relaxation,
                 params.relax_skip * params.tolerance,
             );
-            pos = p;
-            relaxed = d;
+            for (v, p, d) in moves {
+                pos[v] = p;
+                relaxed = relaxed.max(d);
+                changed.push(v);
+            }
         }
         if params.prevent_flips {
-            guard_flips(&before, &mut pos, &normal, triangles, &oriented);
+            changed.sort_unstable();
+            changed.dedup();
+            guard_flips(
+                &before, &mut pos, &normal, triangles, &oriented, topo, &changed,
+            );
         }
         if !any && relaxed <= params.tolerance {
             break;
@@ -586,18 +613,27 @@ fn guard_flips(
     normal: &[Vec3],
     triangles: &[[u32; 3]],
     oriented: &[bool],
+    topo: &Topology,
+    changed: &[usize],
 ) -> Vec<usize> {
     let mut reverted = Vec::new();
+    // Only the triangles of the vertices that moved can have flipped.
+    let mut cand: Vec<usize> = changed
+        .iter()
+        .flat_map(|&v| topo.vertex_triangles.row(v).iter().map(|&t| t as usize))
+        .collect();
+    cand.sort_unstable();
+    cand.dedup();
     loop {
-        let bad: Vec<usize> = triangles
+        let bad: Vec<usize> = cand
             .par_iter()
-            .enumerate()
-            .filter(|(k, t)| {
-                oriented[*k]
+            .copied()
+            .filter(|&k| {
+                let t = &triangles[k];
+                oriented[k]
                     && t.iter().any(|&v| pos[v as usize] != before[v as usize])
                     && orientation(t, pos, normal) <= 0.0
             })
-            .map(|(k, _)| k)
             .collect();
         if bad.is_empty() {
             break;
@@ -632,23 +668,22 @@ pub fn target_iso(eps: f64, margin: f64, share: f64) -> f64 {
 /// One tangential relaxation step (Sec. 6.3) of the zone vertices: for every edge, the minimal
 /// rotation about its centre that makes it tangent to the field and the symmetric stretch that
 /// restores its rest length give target displacements of its two vertices; each vertex moves
-/// by `amount` times the tangential part of their average. Returns the new positions and the
-/// largest displacement.
+/// by `amount` times the tangential part of their average (moves shorter than `skip` are not
+/// made). Returns the moved vertices with their new positions and displacements.
 fn relax(
     pos: &[Vec3],
     normal: &[Vec3],
-    zone: &[bool],
+    zone: &[usize],
     movable: &(dyn Fn(usize) -> bool + Sync),
     topo: &Topology,
     rest: &[f64],
     amount: f64,
     skip: f64,
-) -> (Vec<Vec3>, f64) {
-    let out: Vec<(Vec3, f64)> = (0..pos.len())
-        .into_par_iter()
-        .map(|v| {
-            if !zone[v] || !movable(v) {
-                return (pos[v], 0.0);
+) -> Vec<(usize, Vec3, f64)> {
+    zone.par_iter()
+        .filter_map(|&v| {
+            if !movable(v) {
+                return None;
             }
             let nv = normal[v];
             let mut acc = Vec3::zeros();
@@ -679,18 +714,16 @@ fn relax(
                 count += 1;
             }
             if count == 0 {
-                return (pos[v], 0.0);
+                return None;
             }
             let mut d = acc / count as f64;
             d -= nv * d.dot(&nv);
             d *= amount;
             let l = d.norm();
-            if l < skip {
-                return (pos[v], 0.0);
+            if l < skip || l == 0.0 {
+                return None;
             }
-            (pos[v] + d, l)
+            Some((v, pos[v] + d, l))
         })
-        .collect();
-    let moved = out.iter().map(|o| o.1).fold(0.0, f64::max);
-    (out.into_iter().map(|o| o.0).collect(), moved)
+        .collect()
 }

@@ -290,7 +290,10 @@ pub fn repair(
     let t_pairs = std::time::Instant::now();
     let pairs = separate_pairs(body, layers, &mut pos, &starts, &rings, params);
     if std::env::var_os("UNTANGLE_REPAIR_TRACE").is_some() {
-        eprintln!("repair: pair phase {:.0} ms; {reports:?}", t_pairs.elapsed().as_secs_f64() * 1e3);
+        eprintln!(
+            "repair: pair phase {:.0} ms; {reports:?}",
+            t_pairs.elapsed().as_secs_f64() * 1e3
+        );
     }
     for (k, l) in layers.iter().enumerate() {
         let base = starts[k] as usize;
@@ -426,7 +429,8 @@ pub fn separate_pairs(
         tri_start.push(tris.len() as u32);
     }
     let nobj = tri_start.len() - 1;
-    let box_of = |t: usize, pos: &[Vec3]| Aabb::from_points(tris[t].iter().map(|&v| &pos[v as usize]));
+    let box_of =
+        |t: usize, pos: &[Vec3]| Aabb::from_points(tris[t].iter().map(|&v| &pos[v as usize]));
     let all_boxes = |pos: &[Vec3]| -> Vec<Aabb> {
         (0..tris.len())
             .into_par_iter()
