@@ -83,6 +83,17 @@ fn main() {
             {
                 params.projection.relax_skip = x;
             }
+            if let Ok(x) = std::env::var("LAYERS_BENCH_SELF_GUARD") {
+                // p: projection, r: repair's pair phase, pr: both, none: off.
+                params.projection.prevent_self_intersections = x.contains('p');
+                params.repair.prevent_self_intersections = x.contains('r');
+            }
+            if let Some(x) = std::env::var("LAYERS_BENCH_GUARD_INTERVAL")
+                .ok()
+                .and_then(|s| s.parse().ok())
+            {
+                params.projection.self_guard_interval = x;
+            }
             if std::env::var_os("LAYERS_BENCH_NO_ACTIVE_SET").is_some() {
                 params.projection.active_set = false;
             }

@@ -38,6 +38,7 @@ pub mod operators;
 pub mod projection;
 pub mod repair;
 pub mod sampling;
+pub mod self_guard;
 pub mod separation;
 pub mod shapes;
 pub mod thickness;

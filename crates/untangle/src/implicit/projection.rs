@@ -18,6 +18,7 @@
 
 use super::field::{FieldSample, LayerField};
 use super::operators::{check_weights, Operator, MAX_LAYERS};
+use super::self_guard::SelfGuard;
 use super::thickness;
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
@@ -302,6 +303,12 @@ pub struct ProjectionParams {
     /// Relaxation moves shorter than `relax_skip · tolerance` are not made (the vertex keeps
     /// its position, so the active set need not evaluate it again); 0 makes every move.
     pub relax_skip: f64,
+    /// Undo the moves that would make two triangles of the garment intersect that did not at
+    /// the start (see [`super::self_guard`]).
+    pub prevent_self_intersections: bool,
+    /// Passes between two checks of the self-intersection guard (moves since the last check
+    /// are undone where they made the garment intersect itself anew).
+    pub self_guard_interval: usize,
 }
 
 impl Default for ProjectionParams {
@@ -317,6 +324,8 @@ impl Default for ProjectionParams {
             prevent_flips: true,
             active_set: true,
             relax_skip: 10.0,
+            prevent_self_intersections: false,
+            self_guard_interval: 8,
         }
     }
 }
@@ -436,8 +445,21 @@ pub fn project_from(
     let mut last = vec![f64::INFINITY; nv];
     let mut iterations = 0;
     let mut evaluations = 0;
+    let mut guard = params
+        .prevent_self_intersections
+        .then(|| SelfGuard::new(triangles, topo, start));
+    // Self-intersection checkpoint: positions free of new self-intersections, and the
+    // vertices changed since (checked every `self_guard_interval` passes and at the end).
+    let mut checkpoint = if guard.is_some() {
+        start.to_vec()
+    } else {
+        Vec::new()
+    };
+    let mut since: Vec<usize> = Vec::new();
+    let mut in_since = vec![false; if guard.is_some() { nv } else { 0 }];
     for it in 0..params.max_iterations.max(1) {
         iterations = it + 1;
+
         let needed = |v: usize| movable(v) && (!evaluated[v] || zone[v]);
         let todo: Vec<usize> = if params.active_set {
             let mut todo = Vec::new();
@@ -457,9 +479,6 @@ pub fn project_from(
         } else {
             (0..nv).filter(|&v| needed(v)).collect()
         };
-        if std::env::var_os("UNTANGLE_PROJ_TRACE").is_some() {
-            eprintln!("layer {i} pass {it}: {} evaluations", todo.len());
-        }
         evaluations += todo.len();
         let step: Vec<(usize, Option<Step>)> = todo
             .par_iter()
@@ -576,7 +595,30 @@ pub fn project_from(
                 &before, &mut pos, &normal, triangles, &oriented, topo, &changed,
             );
         }
-        if !any && relaxed <= params.tolerance {
+        let mut stop = !any && relaxed <= params.tolerance;
+        if let Some(g) = guard.as_mut() {
+            for &v in &changed {
+                if !in_since[v] {
+                    in_since[v] = true;
+                    since.push(v);
+                }
+            }
+            let last = it + 1 == params.max_iterations.max(1);
+            if stop || last || (it + 1) % params.self_guard_interval.max(1) == 0 {
+                since.sort_unstable();
+                for v in g.revert_new(&checkpoint, &mut pos, &since) {
+                    // Put back: evaluate again next pass (its neighbours may have moved on).
+                    at[v] = Vec3::repeat(f64::NAN);
+                    stop = false;
+                }
+                for &v in &since {
+                    checkpoint[v] = pos[v];
+                    in_since[v] = false;
+                }
+                since.clear();
+            }
+        }
+        if stop {
             break;
         }
     }

@@ -22,6 +22,7 @@
 //! finds no crossing between objects (see [`separate_pairs`]).
 
 use super::field::LayerField;
+use super::self_guard::SelfGuard;
 use crate::broad::Bvh;
 use crate::geom::tri_tri::{edge_crosses_triangle, triangles_intersect, triangles_may_intersect};
 use crate::geom::{Aabb, Vec3};
@@ -45,6 +46,9 @@ pub struct RepairParams {
     pub pair_rounds: usize,
     /// Most rounds of the symmetric phase in all.
     pub pair_rounds_max: usize,
+    /// Undo the symmetric phase's moves that make a garment intersect itself anew (see
+    /// [`super::self_guard`]); the phase may then leave crossings between layers.
+    pub prevent_self_intersections: bool,
 }
 
 impl Default for RepairParams {
@@ -56,6 +60,7 @@ impl Default for RepairParams {
             bump: 4.0,
             pair_rounds: 200,
             pair_rounds_max: 3000,
+            prevent_self_intersections: false,
         }
     }
 }
@@ -287,14 +292,7 @@ pub fn repair(
         rep.vertices = total.iter().filter(|&&x| x > 0.0).count();
         rep.max_push = total.iter().copied().fold(0.0, f64::max);
     }
-    let t_pairs = std::time::Instant::now();
     let pairs = separate_pairs(body, layers, &mut pos, &starts, &rings, params);
-    if std::env::var_os("UNTANGLE_REPAIR_TRACE").is_some() {
-        eprintln!(
-            "repair: pair phase {:.0} ms; {reports:?}",
-            t_pairs.elapsed().as_secs_f64() * 1e3
-        );
-    }
     for (k, l) in layers.iter().enumerate() {
         let base = starts[k] as usize;
         positions[k].copy_from_slice(&pos[base..base + l.mesh.positions.len()]);
@@ -480,7 +478,19 @@ pub fn separate_pairs(
     let mut pressed = vec![false; tris.len()];
     let mut moved_tri = vec![false; tris.len()];
     let mut moved_ever = vec![false; nvg];
-    let mut trace = [0.0f64; 5];
+    // Optional self-intersection guard per garment, with the positions at the round's start.
+    let mut guards: Option<Vec<(SelfGuard, Vec<Vec3>)>> =
+        params.prevent_self_intersections.then(|| {
+            layers
+                .iter()
+                .enumerate()
+                .map(|(k, l)| {
+                    let base = starts[k] as usize;
+                    let p = pos[base..base + l.mesh.positions.len()].to_vec();
+                    (SelfGuard::new(&l.mesh.triangles, l.topo, &p), p)
+                })
+                .collect()
+        });
     // Progress criterion: stop after `pair_rounds` rounds without a new lowest pair count.
     // The positions with the fewest pairs are kept (the count can rise again while the layers
     // push each other).
@@ -497,7 +507,6 @@ pub fn separate_pairs(
             break;
         }
         rep.rounds = round + 1;
-        let tr0 = std::time::Instant::now();
         // Triangles that cross a layer further in: they do not move in (the stack expands
         // outwards from the body instead of squeezing the layers in between).
         for &(a, b) in &pairs {
@@ -599,6 +608,27 @@ pub fn separate_pairs(
                 pos[v] += disp[v];
                 moved_ever[v] = true;
             }
+        }
+        if let Some(guards) = guards.as_mut() {
+            // Undo the moves that make a garment intersect itself anew (per garment).
+            touched.sort_unstable();
+            for (k, (g, before)) in guards.iter_mut().enumerate() {
+                let base = starts[k] as usize;
+                let nv = layers[k].mesh.positions.len();
+                let lo = touched.partition_point(|&v| v < base);
+                let hi = touched.partition_point(|&v| v < base + nv);
+                if lo == hi {
+                    continue;
+                }
+                let local: Vec<usize> = touched[lo..hi].iter().map(|&v| v - base).collect();
+                let slice = &mut pos[base..base + nv];
+                g.revert_new(before, slice, &local);
+                for &v in &local {
+                    before[v] = slice[v];
+                }
+            }
+        }
+        for &v in &touched {
             let k = starts.partition_point(|&s| s as usize <= v) - 1;
             let lv = v - starts[k] as usize;
             for &t in layers[k].topo.vertex_triangles.row(lv) {
@@ -623,7 +653,6 @@ pub fn separate_pairs(
             }
         }
         dynamic_list.sort_unstable();
-        let tr1 = std::time::Instant::now();
         // Per object: its moved triangles and its dynamic triangles, each with a BVH.
         let split = |list: &[u32]| -> Vec<(Vec<u32>, Bvh)> {
             (0..nobj)
@@ -639,7 +668,6 @@ pub fn separate_pairs(
         };
         let moved_by = split(&moved_list);
         let dyn_by = split(&dynamic_list);
-        let tr2 = std::time::Instant::now();
         let pos_ro: &[Vec3] = pos;
         let test = |a: usize, b: usize| {
             let (ta, tb) = (tris[a], tris[b]);
@@ -677,15 +705,6 @@ pub fn separate_pairs(
         }
         pairs.sort_unstable();
         pairs.dedup();
-        let tr3 = std::time::Instant::now();
-        trace[0] += (tr1 - tr0).as_secs_f64() * 1e3;
-        trace[1] += (tr2 - tr1).as_secs_f64() * 1e3;
-        trace[2] += (tr3 - tr2).as_secs_f64() * 1e3;
-        trace[3] += moved_list.len() as f64;
-        trace[4] += dynamic_list.len() as f64;
-    }
-    if std::env::var_os("UNTANGLE_REPAIR_TRACE").is_some() {
-        eprintln!("pair rounds: moves {:.0} ms, dyn bvh {:.0} ms, queries {:.0} ms, moved tris {}, dynamic {}", trace[0], trace[1], trace[2], trace[3], trace[4]);
     }
     if !pairs.is_empty() && pairs.len() > best {
         if let Some(b) = best_pos {
