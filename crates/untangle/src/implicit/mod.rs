@@ -8,7 +8,8 @@
 //! thicknesses ([`thickness`], Sec. 6.2); each mesh is then projected onto its corrected
 //! iso-surface by Newton steps interleaved with tangential relaxation ([`projection`], Sec. 6.3).
 //! [`layers`] is the pipeline and the verification by the global intersection analysis;
-//! [`separation`] measures the result against the thickness rule (Table 3).
+//! [`separation`] measures the result against the thickness rule (Table 3); [`repair`] fixes the
+//! crossings the projection leaves.
 //!
 //! Deviations from the paper, and why:
 //! - The closest point on the zero set (the paper's supplement, unavailable) is derived in
@@ -28,6 +29,12 @@
 //! - Points outside a garment's grid do not see that garment (it is inactive there).
 //! - Garment normals are made consistent and outward (away from the body's centre) before
 //!   fitting, whatever the input winding.
+//! - The projection evaluates only the vertices whose position changed since their last
+//!   evaluation (same result as re-evaluating the whole deformed zone every pass) and skips
+//!   relaxation moves below ten tolerances (so converged regions stop being re-evaluated).
+//! - Self-intersection is out of the paper's scope (Sec. 7); [`self_guard`] optionally undoes
+//!   the moves that make a garment intersect itself anew (off by default: it costs time and,
+//!   at the largest sizes, leaves crossings between layers when on in the repair).
 
 pub mod band;
 pub mod field;
