@@ -17,6 +17,16 @@ fn write(dir: &std::path::Path, name: &str, r: f64) -> std::path::PathBuf {
 
 #[test]
 fn inverted_spheres_are_untangled_with_a_report() {
+    run_inverted_spheres(&[]);
+}
+
+#[test]
+fn the_self_intersection_guard_flag_keeps_the_result_clean() {
+    let r = run_inverted_spheres(&["--no-new-self-intersections"]);
+    assert_eq!(r["verification"]["self_intersections"], 0);
+}
+
+fn run_inverted_spheres(extra: &[&str]) -> serde_json::Value {
     let dir = tempfile::tempdir().unwrap();
     let inner = write(dir.path(), "inner.obj", 0.5);
     let outer = write(dir.path(), "outer.obj", 0.46);
@@ -30,6 +40,7 @@ fn inverted_spheres_are_untangled_with_a_report() {
         .arg(&out)
         .arg("--json")
         .arg(&json)
+        .args(extra)
         .output()
         .unwrap();
     assert_eq!(
@@ -46,6 +57,7 @@ fn inverted_spheres_are_untangled_with_a_report() {
     let m = untangle::mesh::obj::read_obj(&out.join("outer.obj")).unwrap();
     let mean = m.positions.iter().map(|p| p.norm()).sum::<f64>() / m.positions.len() as f64;
     assert!((mean - (0.5 + 0.46 + 0.01) / 2.0).abs() < 3e-3, "{mean}");
+    r
 }
 
 #[test]

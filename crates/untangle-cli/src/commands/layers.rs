@@ -39,6 +39,11 @@ pub struct Args {
     /// Sampling seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Undo the moves that would make a garment intersect itself where it did not before
+    /// (slower; on large, heavily overlapping outfits the repair may then leave crossings
+    /// between layers).
+    #[arg(long)]
+    pub no_new_self_intersections: bool,
 }
 
 fn per_layer(values: &[f64], n: usize, what: &str, default: f64) -> Result<Vec<f64>> {
@@ -112,6 +117,9 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         },
         ..Default::default()
     };
+    let mut params = params;
+    params.projection.prevent_self_intersections = args.no_new_self_intersections;
+    params.repair.prevent_self_intersections = args.no_new_self_intersections;
     let fields_total = (n + body.is_some() as usize) as u64;
     let pb = ctx.progress(fields_total + n as u64, "untangling");
     let t = std::time::Instant::now();
