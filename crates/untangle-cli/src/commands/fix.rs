@@ -54,6 +54,9 @@ pub struct Args {
     /// linearly, the last one then held.
     #[arg(long)]
     pub body: Option<PathBuf>,
+    /// How the body is placed: `--body-scale`, `--body-offset`, `--body-z-up`.
+    #[command(flatten)]
+    pub placement: Placement,
     /// Steps per body frame (with `--body DIR`).
     #[arg(long, default_value_t = 1)]
     pub body_frame_steps: usize,
@@ -407,7 +410,7 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
     let Method::ChaKo = args.method;
     let garment = read_garment(&args.files)?;
     let body = match &args.body {
-        Some(p) => Some(load_body(p, &Placement::IDENTITY)?),
+        Some(p) => Some(load_body(p, &args.placement)?),
         None => None,
     };
     let mut pinned = Vec::new();
