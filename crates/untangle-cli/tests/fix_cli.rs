@@ -250,6 +250,13 @@ fn body_file_and_dir_and_pins() {
     assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
     let r = json(&d.path().join("w.json"));
     assert_eq!(r["output_intersection_free"], false);
+    // The user is told why: the input already penetrates the body.
+    assert!(r["input_body_intersecting_pairs"].as_u64().unwrap() > 0);
+    assert!(
+        stdout(&o).contains("already intersects the body"),
+        "{}",
+        stdout(&o)
+    );
     let c = untangle(&["check", "w.obj", "--body", "wall.obj"], d.path());
     assert_eq!(c.status.code(), Some(1), "the oracle agrees");
     // The same wall placed away from the sheet with `--body-scale`/`--body-offset` (shared
