@@ -9,6 +9,10 @@
 //! repair off); `LAYERS_BENCH_ORDER=pants3,tshirt,...` changes the garments and their order;
 //! `LAYERS_BENCH_FULL_GRID=1` fills the grids exactly everywhere (no narrow band);
 //! `LAYERS_BENCH_ROWS=4:4,3:2` runs only these (subdivision : garments) rows;
+//! `LAYERS_BENCH_SELF_GUARD=p|r|pr` turns the self-intersection guards on (projection / repair);
+//! `LAYERS_BENCH_RELAX_SKIP=x`, `LAYERS_BENCH_NO_ACTIVE_SET=1`, `LAYERS_BENCH_GUARD_INTERVAL=n` set
+//! projection knobs; `LAYERS_BENCH_FIELD_CHECK=1` (with VERBOSE) samples the lower layer's field
+//! at the contact vertices;
 //! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ.
 use std::path::PathBuf;
 use std::time::Instant;
@@ -190,6 +194,55 @@ fn main() {
                 }
                 for r in &out.repair {
                     eprintln!("  repair {r:?}");
+                }
+                if std::env::var_os("LAYERS_BENCH_FIELD_CHECK").is_some() {
+                    // Is the gap error in the fields? At the contact vertices of garment k
+                    // (projection only), the field of garment k-1: value (the offset in field
+                    // units), gradient norm, and the measured mesh distance.
+                    use untangle::implicit::field::LayerField;
+                    let centre = body.positions.iter().sum::<untangle::geom::Vec3>()
+                        / body.positions.len() as f64;
+                    for k in 1..garments.len() {
+                        let f = untangle::implicit::layers::build_field(
+                            &garments[k - 1],
+                            &centre,
+                            false,
+                            &params.fields,
+                        )
+                        .unwrap();
+                        let md = untangle::implicit::separation::MeshDistance::new(
+                            &o2.positions[k - 1],
+                            &garments[k - 1].triangles,
+                        );
+                        let me = k + 1;
+                        let (mut n, mut sv, mut sg, mut sd) = (0usize, 0.0, 0.0, 0.0);
+                        for ((p, run), &act) in o2.positions[k]
+                            .iter()
+                            .zip(&o2.projections[k].run)
+                            .zip(&o2.projections[k].active)
+                        {
+                            if !(run.0 < me && act & (1 << (me - 1)) != 0) {
+                                continue;
+                            }
+                            let (Some((v, g)), Some((d, a))) =
+                                (f.field(p), md.distance_and_alignment_within(p, 0.04))
+                            else {
+                                continue;
+                            };
+                            if a < 0.99 {
+                                continue;
+                            }
+                            n += 1;
+                            sv += v;
+                            sg += g.norm();
+                            sd += d;
+                        }
+                        let n = n.max(1) as f64;
+                        eprintln!(
+                            "  field check {} over {}: face-to-face contact vertices {n}, mean f_below {:.5}, mean |grad f_below| {:.3}, mean distance {:.5}",
+                            garments[k].name, garments[k - 1].name, sv / n, sg / n, sd / n
+                        );
+                    }
                 }
             }
             eprintln!(
