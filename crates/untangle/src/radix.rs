@@ -8,15 +8,13 @@ pub fn sort_by_key<T: Copy + Default>(v: &mut Vec<T>, key: impl Fn(&T) -> u64) {
         v.sort_by_key(|x| key(x)); // stable
         return;
     }
-    // One read pass builds the histograms of all eight key bytes; a byte that is the same for
-    // every element (e.g. the unused high bits of a packed key) needs no pass.
-    let mut counts = vec![[0usize; 256]; 8];
-    for x in v.iter() {
-        let k = key(x);
-        for (b, c) in counts.iter_mut().enumerate() {
-            c[((k >> (8 * b)) & 0xff) as usize] += 1;
-        }
-    }
+    // Keys below 2^32 (packed pairs of indices) need at most four byte histograms.
+    let small = v.iter().all(|x| key(x) >> 32 == 0);
+    let counts = if small {
+        histograms::<T, 4>(v, &key)
+    } else {
+        histograms::<T, 8>(v, &key)
+    };
     let n = v.len();
     let mut tmp = vec![T::default(); n];
     for (pass, count) in counts.iter().enumerate() {
@@ -39,6 +37,67 @@ pub fn sort_by_key<T: Copy + Default>(v: &mut Vec<T>, key: impl Fn(&T) -> u64) {
     }
 }
 
+/// Sorts `v` stably by `(bucket(x), key(x))`, where `bucket(x) < buckets`: a counting sort by
+/// bucket, then a stable sort of each bucket by key (insertion sort for the small buckets of
+/// sparse pair keys). Falls back to [`sort_by_key`] on `bucket * 2^32 + key` when there are many
+/// more buckets than elements (the histogram would dominate).
+pub fn sort_by_bucket_then_key<T: Copy + Default>(
+    v: &mut Vec<T>,
+    buckets: usize,
+    bucket: impl Fn(&T) -> u32,
+    key: impl Fn(&T) -> u32,
+) {
+    if v.len() < 64 || buckets > 4 * v.len() {
+        sort_by_key(v, |x| ((bucket(x) as u64) << 32) | key(x) as u64);
+        return;
+    }
+    let mut start = vec![0u32; buckets + 1];
+    for x in v.iter() {
+        start[bucket(x) as usize + 1] += 1;
+    }
+    for i in 1..=buckets {
+        start[i] += start[i - 1];
+    }
+    let mut tmp = vec![T::default(); v.len()];
+    let mut fill = start.clone();
+    for x in v.iter() {
+        let b = bucket(x) as usize;
+        tmp[fill[b] as usize] = *x;
+        fill[b] += 1;
+    }
+    for b in 0..buckets {
+        let r = &mut tmp[start[b] as usize..start[b + 1] as usize];
+        if r.len() <= 24 {
+            // Stable insertion sort.
+            for i in 1..r.len() {
+                let x = r[i];
+                let k = key(&x);
+                let mut j = i;
+                while j > 0 && key(&r[j - 1]) > k {
+                    r[j] = r[j - 1];
+                    j -= 1;
+                }
+                r[j] = x;
+            }
+        } else {
+            r.sort_by_key(|x| key(x)); // stable
+        }
+    }
+    *v = tmp;
+}
+
+/// Histograms of the low `B` key bytes, in one read pass (fixed `B`: the loop unrolls).
+fn histograms<T, const B: usize>(v: &[T], key: &impl Fn(&T) -> u64) -> Vec<[usize; 256]> {
+    let mut counts = [[0usize; 256]; B];
+    for x in v {
+        let k = key(x);
+        for (b, c) in counts.iter_mut().enumerate() {
+            c[((k >> (8 * b)) & 0xff) as usize] += 1;
+        }
+    }
+    counts.to_vec()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -51,6 +110,18 @@ mod tests {
             let mut w = v.clone();
             sort_by_key(&mut v, |x| x.0);
             w.sort_by_key(|x| x.0);
+            prop_assert_eq!(v, w);
+        }
+
+        #[test]
+        fn bucket_sort_matches_a_stable_comparison_sort(
+            keys in proptest::collection::vec((0u32..50, 0u32..40), 0..700),
+            buckets in 50usize..3000,
+        ) {
+            let mut v: Vec<(u32, u32, u32)> = keys.iter().enumerate().map(|(i, &(b, k))| (b, k, i as u32)).collect();
+            let mut w = v.clone();
+            sort_by_bucket_then_key(&mut v, buckets, |x| x.0, |x| x.1);
+            w.sort_by_key(|x| (x.0, x.1));
             prop_assert_eq!(v, w);
         }
     }

@@ -71,24 +71,25 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     let mut out = bvh.self_slot_pairs_culled(
         |sa, sb, out: &mut Vec<Crossing>| {
             let (ta, tb) = (slot_tris[sa as usize], slot_tris[sb as usize]);
-            if ta.iter().any(|v| tb.contains(v)) {
+            if shares_a_vertex(ta, tb) {
                 return; // shared vertex or edge: the fan pass decides
             }
-            let (a, b) = (order[sa as usize], order[sb as usize]);
+            let id = |s: u32| order[s as usize];
             if has_obstacles
-                && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
-                && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
+                && mesh.kind_of_triangle(id(sa)) == ObjectKind::Obstacle
+                && mesh.kind_of_triangle(id(sb)) == ObjectKind::Obstacle
             {
                 return;
             }
             match pair_crossings(&slot_prep[sa as usize], &slot_prep[sb as usize]) {
-                PairOutcome::Apart => {}
+                PairOutcome::Apart | PairOutcome::Crossings(0) => {}
                 PairOutcome::Crossings(mask) => {
+                    let (a, b) = (id(sa), id(sb));
                     ctx.push_owned_edges(a, b, mask & 7, out);
                     ctx.push_owned_edges(b, a, mask >> 3, out);
                 }
                 PairOutcome::Undecided { sides_a, sides_b } => {
-                    ctx.pair_with_sides(a, b, ta, tb, sides_a, sides_b, out)
+                    ctx.pair_with_sides(id(sa), id(sb), ta, tb, sides_a, sides_b, out)
                 }
             }
         },
@@ -116,8 +117,21 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
         }
     }
     out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
-    crate::radix::sort_by_key(&mut out, |c| ((c.edge as u64) << 32) | c.triangle as u64);
+    // Sorted by (edge, triangle).
+    crate::radix::sort_by_bucket_then_key(
+        &mut out,
+        topo.edge_triangles.len(),
+        |c| c.edge,
+        |c| c.triangle,
+    );
     out
+}
+
+/// Whether two triangles have a common vertex (branch-free).
+#[inline]
+fn shares_a_vertex(a: [u32; 3], b: [u32; 3]) -> bool {
+    let eq = |v: u32| (v == b[0]) | (v == b[1]) | (v == b[2]);
+    eq(a[0]) | eq(a[1]) | eq(a[2])
 }
 
 /// Crossings between triangles that share exactly one vertex, fan by fan.
@@ -264,7 +278,7 @@ struct Ctx<'a> {
 impl Ctx<'_> {
     /// Crossings of the edges `k` of `a` with bit `k` set in `mask` through triangle `b`, for the
     /// edges that `a` owns (the lower-indexed triangle beside an edge tests it).
-    #[inline]
+    #[inline(always)]
     fn push_owned_edges(&self, a: u32, b: u32, mask: u8, out: &mut Vec<Crossing>) {
         if mask == 0 {
             return;
@@ -301,7 +315,9 @@ impl Ctx<'_> {
         out: &mut Vec<Crossing>,
     ) {
         let p = |v: u32| &self.pos[v as usize];
-        if (da.contains(&0) || db.contains(&0))
+        // Only (nearly) coplanar pairs, with undecided corners on both sides, need the 2D
+        // filter; otherwise the per-edge filters below are cheaper.
+        if (da.contains(&0) && db.contains(&0))
             && !triangles_may_overlap_projected(&ta.map(|v| *p(v)), &tb.map(|v| *p(v)))
         {
             return;
