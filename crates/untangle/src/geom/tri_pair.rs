@@ -85,35 +85,32 @@ impl PreparedTriangle {
     }
 }
 
-/// Certified sides of `p`'s corners with respect to `plane`'s plane, with `|p_i - c0|_1 <= r`.
-#[inline]
-fn sides(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> [i8; 3] {
+/// Certified sides of `p`'s corners with respect to `plane`'s plane, with `|p_i - c0|_1 <= r`,
+/// as two bit masks: bit `i` of the first = corner `i` certainly on the positive side, of the
+/// second = certainly on the negative side.
+#[inline(always)]
+fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
     let tol = plane.k * r;
     let o = plane.corners[0];
-    let side = |x: &Vec3| {
-        let s = plane.n.dot(&(x - o));
-        (s > tol) as i8 - (s < -tol) as i8
-    };
-    [
-        side(&p.corners[0]),
-        side(&p.corners[1]),
-        side(&p.corners[2]),
-    ]
+    let n = plane.n;
+    let (mut pos, mut neg) = (0u8, 0u8);
+    for (i, x) in p.corners.iter().enumerate() {
+        let s = n.x * (x.x - o.x) + n.y * (x.y - o.y) + n.z * (x.z - o.z);
+        pos |= ((s > tol) as u8) << i;
+        neg |= ((s < -tol) as u8) << i;
+    }
+    (pos, neg)
 }
 
-/// The two edges whose endpoints have different (non-zero) sides.
+/// The side masks as signs (`+1`, `-1`, `0` = not certified).
 #[inline]
-fn straddling(s: [i8; 3]) -> [usize; 2] {
-    // The lone corner `l` (its side differs from both others) is shared by edges `l - 1`, `l`.
-    let l = if s[0] == s[1] {
-        2
-    } else if s[1] == s[2] {
-        0
-    } else {
-        1
-    };
-    [(l + 2) % 3, l]
+fn signs((pos, neg): (u8, u8)) -> [i8; 3] {
+    std::array::from_fn(|i| ((pos >> i) & 1) as i8 - ((neg >> i) & 1) as i8)
 }
+
+/// For a positive-side mask of a straddling triangle (1..=6, all corners certified): its two
+/// straddling edges, i.e. the two edges at the corner alone on its side.
+const STRADDLING: [[usize; 2]; 7] = [[0, 0], [2, 0], [0, 1], [1, 2], [1, 2], [0, 1], [2, 0]];
 
 /// Decides every edge-triangle crossing between triangles `a` and `b`, which must not share a
 /// vertex; see the module docs. A certified answer is the exact one, also under the symbolic
@@ -122,22 +119,23 @@ fn straddling(s: [i8; 3]) -> [usize; 2] {
 pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome {
     // Every corner difference is bounded in L1 by the reaches plus the distance of the c0s.
     let r = a.reach + b.reach + l1(&(a.corners[0] - b.corners[0]));
-    let sa = sides(a, b, r);
-    if sa[0] != 0 && sa[0] == sa[1] && sa[1] == sa[2] {
+    let ma = side_masks(a, b, r);
+    if ma.0 == 7 || ma.1 == 7 {
         return PairOutcome::Apart;
     }
-    let sb = sides(b, a, r);
-    if sb[0] != 0 && sb[0] == sb[1] && sb[1] == sb[2] {
+    let mb = side_masks(b, a, r);
+    if mb.0 == 7 || mb.1 == 7 {
         return PairOutcome::Apart;
     }
-    if sa.contains(&0) || sb.contains(&0) {
+    if (ma.0 | ma.1) != 7 || (mb.0 | mb.1) != 7 {
         return PairOutcome::Undecided {
-            sides_a: sa,
-            sides_b: sb,
+            sides_a: signs(ma),
+            sides_b: signs(mb),
         };
     }
-    let (ia, ib) = (straddling(sa), straddling(sb));
-    let edge = |t: &PreparedTriangle, i: usize| t.corners[(i + 1) % 3] - t.corners[i];
+    let (ia, ib) = (STRADDLING[ma.0 as usize], STRADDLING[mb.0 as usize]);
+    const NEXT: [usize; 3] = [1, 2, 0];
+    let edge = |t: &PreparedTriangle, i: usize| t.corners[NEXT[i]] - t.corners[i];
     let ea = [edge(a, ia[0]), edge(a, ia[1])];
     let eb = [edge(b, ib[0]), edge(b, ib[1])];
     // o[x][y]: orientation of a's straddling edge x with b's straddling edge y,
@@ -152,8 +150,8 @@ pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome
             let certified = o.abs() > bound;
             if !certified {
                 return PairOutcome::Undecided {
-                    sides_a: sa,
-                    sides_b: sb,
+                    sides_a: signs(ma),
+                    sides_b: signs(mb),
                 };
             }
             pos[x][y] = o > 0.0;
@@ -161,14 +159,10 @@ pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome
     }
     let mut mask = 0u8;
     for x in 0..2 {
-        if pos[x][0] == pos[x][1] {
-            mask |= 1 << ia[x];
-        }
+        mask |= ((pos[x][0] == pos[x][1]) as u8) << ia[x];
     }
     for y in 0..2 {
-        if pos[0][y] == pos[1][y] {
-            mask |= 1 << (3 + ib[y]);
-        }
+        mask |= ((pos[0][y] == pos[1][y]) as u8) << (3 + ib[y]);
     }
     PairOutcome::Crossings(mask)
 }
