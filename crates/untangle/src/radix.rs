@@ -37,53 +37,39 @@ pub fn sort_by_key<T: Copy + Default>(v: &mut Vec<T>, key: impl Fn(&T) -> u64) {
     }
 }
 
-/// Sorts `v` stably by `(bucket(x), key(x))`, where `bucket(x) < buckets`: a counting sort by
-/// bucket, then a stable sort of each bucket by key (insertion sort for the small buckets of
-/// sparse pair keys). Falls back to [`sort_by_key`] on `bucket * 2^32 + key` when there are many
-/// more buckets than elements (the histogram would dominate).
+/// Sorts `v` stably by `(bucket(x), key(x))`, where `bucket(x) < buckets` and
+/// `key(x) < keys`: two stable counting sorts (by key, then by bucket), linear in
+/// `v.len() + buckets + keys`. Falls back to [`sort_by_key`] on `bucket * 2^32 + key` when the
+/// ranges are much larger than `v` (the histograms would dominate).
 pub fn sort_by_bucket_then_key<T: Copy + Default>(
     v: &mut Vec<T>,
-    buckets: usize,
+    (buckets, keys): (usize, usize),
     bucket: impl Fn(&T) -> u32,
     key: impl Fn(&T) -> u32,
 ) {
-    if v.len() < 64 || buckets > 4 * v.len() {
+    if v.len() < 64 || buckets + keys > 8 * v.len() {
         sort_by_key(v, |x| ((bucket(x) as u64) << 32) | key(x) as u64);
         return;
     }
-    let mut start = vec![0u32; buckets + 1];
-    for x in v.iter() {
-        start[bucket(x) as usize + 1] += 1;
+    let mut tmp = vec![T::default(); v.len()];
+    counting_sort(v, &mut tmp, keys, &key);
+    counting_sort(&tmp, v, buckets, &bucket);
+}
+
+/// Stable counting sort of `from` into `to` by `digit(x) < range`.
+fn counting_sort<T: Copy>(from: &[T], to: &mut [T], range: usize, digit: &impl Fn(&T) -> u32) {
+    let mut start = vec![0u32; range + 1];
+    for x in from {
+        start[digit(x) as usize + 1] += 1;
     }
-    for i in 1..=buckets {
+    for i in 1..=range {
         start[i] += start[i - 1];
     }
-    let mut tmp = vec![T::default(); v.len()];
-    let mut fill = start.clone();
-    for x in v.iter() {
-        let b = bucket(x) as usize;
-        tmp[fill[b] as usize] = *x;
-        fill[b] += 1;
+    for x in from {
+        let d = digit(x) as usize;
+        to[start[d] as usize] = *x;
+        start[d] += 1;
     }
-    for b in 0..buckets {
-        let r = &mut tmp[start[b] as usize..start[b + 1] as usize];
-        if r.len() <= 24 {
-            // Stable insertion sort.
-            for i in 1..r.len() {
-                let x = r[i];
-                let k = key(&x);
-                let mut j = i;
-                while j > 0 && key(&r[j - 1]) > k {
-                    r[j] = r[j - 1];
-                    j -= 1;
-                }
-                r[j] = x;
-            }
-        } else {
-            r.sort_by_key(|x| key(x)); // stable
-        }
-    }
-    *v = tmp;
 }
 
 /// Histograms of the low `B` key bytes, in one read pass (fixed `B`: the loop unrolls).
@@ -117,10 +103,11 @@ mod tests {
         fn bucket_sort_matches_a_stable_comparison_sort(
             keys in proptest::collection::vec((0u32..50, 0u32..40), 0..700),
             buckets in 50usize..3000,
+            key_range in 40usize..3000,
         ) {
             let mut v: Vec<(u32, u32, u32)> = keys.iter().enumerate().map(|(i, &(b, k))| (b, k, i as u32)).collect();
             let mut w = v.clone();
-            sort_by_bucket_then_key(&mut v, buckets, |x| x.0, |x| x.1);
+            sort_by_bucket_then_key(&mut v, (buckets, key_range), |x| x.0, |x| x.1);
             w.sort_by_key(|x| (x.0, x.1));
             prop_assert_eq!(v, w);
         }

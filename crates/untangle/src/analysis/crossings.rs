@@ -120,7 +120,7 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     // Sorted by (edge, triangle).
     crate::radix::sort_by_bucket_then_key(
         &mut out,
-        topo.edge_triangles.len(),
+        (topo.edge_triangles.len(), tris.len()),
         |c| c.edge,
         |c| c.triangle,
     );

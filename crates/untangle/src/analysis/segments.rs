@@ -60,7 +60,7 @@ pub fn build_segments(
     // Stable: equal pairs keep crossing order.
     crate::radix::sort_by_bucket_then_key(
         &mut keyed,
-        mesh.triangles.len(),
+        (mesh.triangles.len(), mesh.triangles.len()),
         |k| (k.0 >> 32) as u32,
         |k| k.0 as u32,
     );
