@@ -119,8 +119,8 @@ def main():
     if INSTRUCTIONS:
         env = dict(os.environ, RAYON_NUM_THREADS="1")
         print("\ninstructions per call (callgrind, single thread):")
-        for name, only, f in [("folded --size 125", "folded n=125 dents=4", "folded--size125.obj"),
-                              ("exploded --seed 0", "exploded seed=0", "exploded--seed0.obj")]:
+        for name, only, f in [("folded --size 125", "folded n=125 dents=4", "folded--size125.obj")] + [
+                (f"exploded --seed {s}", f"exploded seed={s}", f"exploded--seed{s}.obj") for s in range(3)]:
             ours = per_call(lambda n: [bench, "--runs", str(n), "--only", only], env)
             ml = per_call(lambda n: [py, "-c", ML_CG, os.path.join(out, f), str(n)])
             print(f"{name:<22} ours {ours/1e6:8.1f} M   MeshLab {ml/1e6:8.1f} M   ratio {ml/ours:.2f}x")

@@ -8,15 +8,13 @@ pub fn sort_by_key<T: Copy + Default>(v: &mut Vec<T>, key: impl Fn(&T) -> u64) {
         v.sort_by_key(|x| key(x)); // stable
         return;
     }
-    // One read pass builds the histograms of all eight key bytes; a byte that is the same for
-    // every element (e.g. the unused high bits of a packed key) needs no pass.
-    let mut counts = vec![[0usize; 256]; 8];
-    for x in v.iter() {
-        let k = key(x);
-        for (b, c) in counts.iter_mut().enumerate() {
-            c[((k >> (8 * b)) & 0xff) as usize] += 1;
-        }
-    }
+    // Keys below 2^32 (packed pairs of indices) need at most four byte histograms.
+    let small = v.iter().all(|x| key(x) >> 32 == 0);
+    let counts = if small {
+        histograms::<T, 4>(v, &key)
+    } else {
+        histograms::<T, 8>(v, &key)
+    };
     let n = v.len();
     let mut tmp = vec![T::default(); n];
     for (pass, count) in counts.iter().enumerate() {
@@ -39,6 +37,53 @@ pub fn sort_by_key<T: Copy + Default>(v: &mut Vec<T>, key: impl Fn(&T) -> u64) {
     }
 }
 
+/// Sorts `v` stably by `(bucket(x), key(x))`, where `bucket(x) < buckets` and
+/// `key(x) < keys`: two stable counting sorts (by key, then by bucket), linear in
+/// `v.len() + buckets + keys`. Falls back to [`sort_by_key`] on `bucket * 2^32 + key` when the
+/// ranges are much larger than `v` (the histograms would dominate).
+pub fn sort_by_bucket_then_key<T: Copy + Default>(
+    v: &mut Vec<T>,
+    (buckets, keys): (usize, usize),
+    bucket: impl Fn(&T) -> u32,
+    key: impl Fn(&T) -> u32,
+) {
+    if v.len() < 64 || buckets + keys > 8 * v.len() {
+        sort_by_key(v, |x| ((bucket(x) as u64) << 32) | key(x) as u64);
+        return;
+    }
+    let mut tmp = vec![T::default(); v.len()];
+    counting_sort(v, &mut tmp, keys, &key);
+    counting_sort(&tmp, v, buckets, &bucket);
+}
+
+/// Stable counting sort of `from` into `to` by `digit(x) < range`.
+fn counting_sort<T: Copy>(from: &[T], to: &mut [T], range: usize, digit: &impl Fn(&T) -> u32) {
+    let mut start = vec![0u32; range + 1];
+    for x in from {
+        start[digit(x) as usize + 1] += 1;
+    }
+    for i in 1..=range {
+        start[i] += start[i - 1];
+    }
+    for x in from {
+        let d = digit(x) as usize;
+        to[start[d] as usize] = *x;
+        start[d] += 1;
+    }
+}
+
+/// Histograms of the low `B` key bytes, in one read pass (fixed `B`: the loop unrolls).
+fn histograms<T, const B: usize>(v: &[T], key: &impl Fn(&T) -> u64) -> Vec<[usize; 256]> {
+    let mut counts = [[0usize; 256]; B];
+    for x in v {
+        let k = key(x);
+        for (b, c) in counts.iter_mut().enumerate() {
+            c[((k >> (8 * b)) & 0xff) as usize] += 1;
+        }
+    }
+    counts.to_vec()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -51,6 +96,19 @@ mod tests {
             let mut w = v.clone();
             sort_by_key(&mut v, |x| x.0);
             w.sort_by_key(|x| x.0);
+            prop_assert_eq!(v, w);
+        }
+
+        #[test]
+        fn bucket_sort_matches_a_stable_comparison_sort(
+            keys in proptest::collection::vec((0u32..50, 0u32..40), 0..700),
+            buckets in 50usize..3000,
+            key_range in 40usize..3000,
+        ) {
+            let mut v: Vec<(u32, u32, u32)> = keys.iter().enumerate().map(|(i, &(b, k))| (b, k, i as u32)).collect();
+            let mut w = v.clone();
+            sort_by_bucket_then_key(&mut v, (buckets, key_range), |x| x.0, |x| x.1);
+            w.sort_by_key(|x| (x.0, x.1));
             prop_assert_eq!(v, w);
         }
     }

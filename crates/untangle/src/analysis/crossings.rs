@@ -13,9 +13,10 @@
 
 use super::input::{AnalysisMesh, ObjectKind};
 use crate::broad::Bvh;
+use crate::geom::tri_pair::{pair_crossings, PairOutcome, PreparedTriangle};
 use crate::geom::tri_tri::{
-    edge_crosses_triangle, edge_may_overlap_projected, straddling_edge_crosses_triangle_fast,
-    triangles_may_overlap_projected, CertifiedPlane,
+    edge_crosses_triangle_filtered, edge_may_overlap_projected,
+    straddling_edge_crosses_triangle_fast, triangles_may_overlap_projected, CertifiedPlane,
 };
 use crate::geom::{Aabb, Vec3};
 
@@ -41,42 +42,56 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     let topo = &mesh.topology;
     let tris = &mesh.triangles;
     let has_obstacles = mesh.objects.iter().any(|o| o.kind == ObjectKind::Obstacle);
-    let planes: Vec<CertifiedPlane> = tris
+    // Triangles in BVH slot order, prepared for the pair kernel: the traversal reads them from
+    // contiguous memory.
+    let order = bvh.order();
+    let slot_tris: Vec<[u32; 3]> = order.iter().map(|&t| tris[t as usize]).collect();
+    let slot_prep: Vec<PreparedTriangle> = slot_tris
         .iter()
         .map(|t| {
-            CertifiedPlane::new(
+            PreparedTriangle::new(
                 &pos[t[0] as usize],
                 &pos[t[1] as usize],
                 &pos[t[2] as usize],
             )
         })
         .collect();
+    let mut planes =
+        vec![CertifiedPlane::from_parts(Vec3::zeros(), Vec3::zeros(), 0.0); tris.len()];
+    for (p, &t) in slot_prep.iter().zip(order) {
+        planes[t as usize] = p.plane();
+    }
     let ctx = Ctx {
         mesh,
         pos,
         planes: &planes,
     };
-    // Triangles and planes in BVH slot order: the traversal reads them from contiguous memory.
-    let order = bvh.order();
-    let slot_tris: Vec<[u32; 3]> = order.iter().map(|&t| tris[t as usize]).collect();
-    let slot_planes: Vec<CertifiedPlane> = order.iter().map(|&t| planes[t as usize]).collect();
     let certifier = super::culling::PatchCertifier::new(tris, topo, pos, &planes, bvh);
     let certified = std::sync::Mutex::new(Vec::new());
     let mut out = bvh.self_slot_pairs_culled(
         |sa, sb, out: &mut Vec<Crossing>| {
             let (ta, tb) = (slot_tris[sa as usize], slot_tris[sb as usize]);
-            if ta.iter().any(|v| tb.contains(v)) {
+            if shares_a_vertex(ta, tb) {
                 return; // shared vertex or edge: the fan pass decides
             }
-            let (a, b) = (order[sa as usize], order[sb as usize]);
+            let id = |s: u32| order[s as usize];
             if has_obstacles
-                && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
-                && mesh.kind_of_triangle(b) == ObjectKind::Obstacle
+                && mesh.kind_of_triangle(id(sa)) == ObjectKind::Obstacle
+                && mesh.kind_of_triangle(id(sb)) == ObjectKind::Obstacle
             {
                 return;
             }
-            let (pa, pb) = (&slot_planes[sa as usize], &slot_planes[sb as usize]);
-            ctx.pair_with(a, b, ta, tb, pa, pb, out);
+            match pair_crossings(&slot_prep[sa as usize], &slot_prep[sb as usize]) {
+                PairOutcome::Apart | PairOutcome::Crossings(0) => {}
+                PairOutcome::Crossings(mask) => {
+                    let (a, b) = (id(sa), id(sb));
+                    ctx.push_owned_edges(a, b, mask & 7, out);
+                    ctx.push_owned_edges(b, a, mask >> 3, out);
+                }
+                PairOutcome::Undecided { sides_a, sides_b } => {
+                    ctx.pair_with_sides(id(sa), id(sb), ta, tb, sides_a, sides_b, out)
+                }
+            }
         },
         |node, first, len| {
             let ok = certifier.embedded(node, first, len);
@@ -102,8 +117,21 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
         }
     }
     out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
-    crate::radix::sort_by_key(&mut out, |c| ((c.edge as u64) << 32) | c.triangle as u64);
+    // Sorted by (edge, triangle).
+    crate::radix::sort_by_bucket_then_key(
+        &mut out,
+        (topo.edge_triangles.len(), tris.len()),
+        |c| c.edge,
+        |c| c.triangle,
+    );
     out
+}
+
+/// Whether two triangles have a common vertex (branch-free).
+#[inline]
+fn shares_a_vertex(a: [u32; 3], b: [u32; 3]) -> bool {
+    let eq = |v: u32| (v == b[0]) | (v == b[1]) | (v == b[2]);
+    eq(a[0]) | eq(a[1]) | eq(a[2])
 }
 
 /// Crossings between triangles that share exactly one vertex, fan by fan.
@@ -138,7 +166,7 @@ fn fan_crossings(ctx: &Ctx, has_obstacles: bool, patch_of: &[u32]) -> Vec<Crossi
                 {
                     continue;
                 }
-                ctx.pair(a, b, &mut out);
+                ctx.shared_vertex_pair(a, b, &mut out);
             }
         }
         out
@@ -248,56 +276,99 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// All crossings between triangles `a` and `b` (not sharing an edge), each edge tested only by
-    /// its owner (the lower-indexed triangle beside it), so every crossing is found exactly once.
-    ///
-    /// Filters, all conservative: certified plane sides reject a pair with one triangle strictly
-    /// on one side of the other's plane; pairs that look coplanar go through a 2D separating-axis
-    /// test; an edge with certified opposite sides needs only the three side tests.
-    #[inline]
-    fn pair(&self, a: u32, b: u32, out: &mut Vec<Crossing>) {
-        let tris = &self.mesh.triangles;
-        let (ta, tb) = (tris[a as usize], tris[b as usize]);
-        let (pa, pb) = (&self.planes[a as usize], &self.planes[b as usize]);
-        self.pair_with(a, b, ta, tb, pa, pb, out);
+    /// Crossings of the edges `k` of `a` with bit `k` set in `mask` through triangle `b`, for the
+    /// edges that `a` owns (the lower-indexed triangle beside an edge tests it).
+    #[inline(always)]
+    fn push_owned_edges(&self, a: u32, b: u32, mask: u8, out: &mut Vec<Crossing>) {
+        if mask == 0 {
+            return;
+        }
+        let topo = &self.mesh.topology;
+        let edges = topo.triangle_edges[a as usize];
+        for (k, &e) in edges.iter().enumerate() {
+            if mask & (1 << k) != 0 && topo.edge_triangles[e as usize][0] == a {
+                out.push(Crossing {
+                    edge: e,
+                    triangle: b,
+                });
+            }
+        }
     }
 
-    /// [`Ctx::pair`] with the triangles' corners and planes already at hand.
+    /// All crossings between triangles `a` and `b` (no common vertex) that the pair kernel left
+    /// undecided, given the certified sides of each one's corners with respect to the other's
+    /// plane. Each edge is tested only by its owner (the lower-indexed triangle beside it), so
+    /// every crossing is found exactly once.
+    ///
+    /// Pairs that look coplanar go through a 2D separating-axis test (a conservative filter);
+    /// an edge with certified opposite sides needs only the three side tests.
+    #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn pair_with(
+    fn pair_with_sides(
         &self,
         a: u32,
         b: u32,
         ta: [u32; 3],
         tb: [u32; 3],
-        plane_a: &CertifiedPlane,
-        plane_b: &CertifiedPlane,
+        da: [i8; 3],
+        db: [i8; 3],
         out: &mut Vec<Crossing>,
     ) {
         let p = |v: u32| &self.pos[v as usize];
-        let da = [
-            plane_b.side(p(ta[0])),
-            plane_b.side(p(ta[1])),
-            plane_b.side(p(ta[2])),
-        ];
-        if da[0] != 0 && da[0] == da[1] && da[1] == da[2] {
-            return;
-        }
-        let db = [
-            plane_a.side(p(tb[0])),
-            plane_a.side(p(tb[1])),
-            plane_a.side(p(tb[2])),
-        ];
-        if db[0] != 0 && db[0] == db[1] && db[1] == db[2] {
-            return;
-        }
-        if (da.contains(&0) || db.contains(&0))
+        // Only (nearly) coplanar pairs, with undecided corners on both sides, need the 2D
+        // filter; otherwise the per-edge filters below are cheaper.
+        if (da.contains(&0) && db.contains(&0))
             && !triangles_may_overlap_projected(&ta.map(|v| *p(v)), &tb.map(|v| *p(v)))
         {
             return;
         }
         self.edges(a, b, ta, tb, da, out);
         self.edges(b, a, tb, ta, db, out);
+    }
+
+    /// Crossings between triangles `a` and `b` that share exactly one vertex: only the edge of
+    /// each opposite the shared vertex can cross the other triangle.
+    #[inline]
+    fn shared_vertex_pair(&self, a: u32, b: u32, out: &mut Vec<Crossing>) {
+        let tris = &self.mesh.triangles;
+        let topo = &self.mesh.topology;
+        let pos = self.pos;
+        for (x, y) in [(a, b), (b, a)] {
+            let (tx, ty) = (tris[x as usize], tris[y as usize]);
+            let Some(k) = (0..3).find(|&k| !ty.contains(&tx[k]) && !ty.contains(&tx[(k + 1) % 3]))
+            else {
+                continue;
+            };
+            let e = topo.triangle_edges[x as usize][k];
+            if topo.edge_triangles[e as usize][0] != x {
+                continue;
+            }
+            let (i, j) = (tx[k], tx[(k + 1) % 3]);
+            let (p, q) = (&pos[i as usize], &pos[j as usize]);
+            let plane = &self.planes[y as usize];
+            let (sp, sq) = (plane.side(p), plane.side(q));
+            if sp != 0 && sp == sq {
+                continue;
+            }
+            let (pa, pb, pc) = (
+                &pos[ty[0] as usize],
+                &pos[ty[1] as usize],
+                &pos[ty[2] as usize],
+            );
+            let ids = [i, j, ty[0], ty[1], ty[2]];
+            let crosses = if sp != 0 && sq != 0 {
+                straddling_edge_crosses_triangle_fast(p, q, pa, pb, pc, ids)
+            } else {
+                edge_may_overlap_projected(p, q, pa, pb, pc)
+                    && edge_crosses_triangle_filtered(p, q, pa, pb, pc, ids)
+            };
+            if crosses {
+                out.push(Crossing {
+                    edge: e,
+                    triangle: y,
+                });
+            }
+        }
     }
 
     /// Edges of `a` (owned by `a`, not incident to `b`) against triangle `b`; `sides` are the
@@ -339,7 +410,7 @@ impl Ctx<'_> {
                 straddling_edge_crosses_triangle_fast(p, q, pa, pb, pc, ids)
             } else {
                 edge_may_overlap_projected(p, q, pa, pb, pc)
-                    && edge_crosses_triangle(p, q, pa, pb, pc, ids)
+                    && edge_crosses_triangle_filtered(p, q, pa, pb, pc, ids)
             };
             if crosses {
                 out.push(Crossing {

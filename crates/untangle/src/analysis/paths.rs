@@ -157,8 +157,8 @@ pub struct Tanglement {
 
 /// A chain of pieces found by the linking sweep, before classification.
 struct Chain {
-    /// `(piece, entry end)` in walking order.
-    steps: Vec<(u32, u8)>,
+    /// Range of its `(piece, entry end)` steps, in walking order, in the shared step list.
+    steps: std::ops::Range<usize>,
     closed: bool,
     ends: Option<[EndKind; 2]>,
     /// Positions `i` where step `i + 1` is the partner of step `i` (a turn at a loop vertex),
@@ -234,8 +234,10 @@ fn link_pieces(
     Ok(links)
 }
 
-fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> Vec<Chain> {
+/// The chains and cycles of linked pieces, with all their steps in one list.
+fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8)>) {
     let n = links.len();
+    let mut all_steps: Vec<(u32, u8)> = Vec::with_capacity(n);
     let mut visited = vec![false; n];
     let mut chains = Vec::new();
     let loop_vertex_of = |piece: u32| -> u32 {
@@ -249,18 +251,18 @@ fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> Vec<Chain> {
             .unwrap_or(NONE)
     };
     // Follows the chain from `start` entered at `entry`, until a terminal or back at `start`.
-    let walk = |start: u32, entry: u8, visited: &mut Vec<bool>| -> Chain {
-        let mut steps = Vec::new();
+    let walk = |start: u32, entry: u8, visited: &mut Vec<bool>, all: &mut Vec<(u32, u8)>| {
+        let first = all.len();
         let mut turns = Vec::new();
         let (mut p, mut e) = (start, entry);
         loop {
             visited[p as usize] = true;
-            steps.push((p, e));
+            all.push((p, e));
             let exit = 1 - e;
             match links[p as usize][exit as usize] {
                 Link::Terminal(kind) => {
                     return Chain {
-                        steps,
+                        steps: first..all.len(),
                         closed: false,
                         ends: Some([EndKind::Inside, kind]),
                         turns,
@@ -268,11 +270,11 @@ fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> Vec<Chain> {
                 }
                 Link::Piece { piece, end } => {
                     if piece == partner(p) {
-                        turns.push((steps.len() - 1, loop_vertex_of(p)));
+                        turns.push((all.len() - 1 - first, loop_vertex_of(p)));
                     }
                     if piece == start && end == entry {
                         return Chain {
-                            steps,
+                            steps: first..all.len(),
                             closed: true,
                             ends: None,
                             turns,
@@ -282,7 +284,7 @@ fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> Vec<Chain> {
                         // Cannot happen for consistent links (every link is mutual); stop
                         // rather than loop.
                         return Chain {
-                            steps,
+                            steps: first..all.len(),
                             closed: true,
                             ends: None,
                             turns,
@@ -300,7 +302,7 @@ fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> Vec<Chain> {
                 break;
             }
             if let Link::Terminal(first) = links[p as usize][k as usize] {
-                let mut ch = walk(p, k, &mut visited);
+                let mut ch = walk(p, k, &mut visited, &mut all_steps);
                 if let Some(ends) = ch.ends.as_mut() {
                     ends[0] = first;
                 }
@@ -310,10 +312,10 @@ fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> Vec<Chain> {
     }
     for p in 0..n as u32 {
         if !visited[p as usize] {
-            chains.push(walk(p, 0, &mut visited));
+            chains.push(walk(p, 0, &mut visited, &mut all_steps));
         }
     }
-    chains
+    (chains, all_steps)
 }
 
 /// The edge a path passes across when it leaves `piece` through its end `exit` (the crossing
@@ -329,17 +331,16 @@ fn edge_across(crossings: &[Crossing], segs: &Segments, piece: u32, exit: u8) ->
     }
 }
 
-/// Pieces of `steps[range]` and the edges crossed an odd number of times between them; when the
-/// sub-path starts or ends with a `B` end, that boundary edge counts too.
+/// The edges crossed an odd number of times between the pieces of `steps`; when the sub-path
+/// starts or ends with a `B` end, that boundary edge counts too. `edges` is scratch space.
 fn cut_of(
     crossings: &[Crossing],
     segs: &Segments,
     steps: &[(u32, u8)],
-    closed: bool,
-    b_start: bool,
-    b_end: bool,
+    (closed, b_start, b_end): (bool, bool, bool),
+    edges: &mut Vec<u32>,
 ) -> Vec<u32> {
-    let mut edges = Vec::new();
+    edges.clear();
     let count = steps.len();
     let transitions = if closed {
         count
@@ -388,7 +389,9 @@ pub fn trace_paths(
     segs: &Segments,
 ) -> Result<(Vec<Path>, Vec<Tanglement>), Inconsistency> {
     let links = link_pieces(mesh, crossings, segs)?;
-    let chains = walk_chains(&links, segs);
+    let (chains, all_steps) = walk_chains(&links, segs);
+    let steps_of = |c: &Chain| &all_steps[c.steps.clone()];
+    let mut scratch = Vec::new();
     let object_of_piece = |p: u32| mesh.object_of_triangle[piece_triangle(segs, p) as usize];
 
     // Classify chains; BLI chains are grouped by loop vertex to find CROSS pairs.
@@ -471,23 +474,37 @@ pub fn trace_paths(
             Class::Plain(kind) => {
                 let b0 = ch.ends.map(|e| e[0] == EndKind::Boundary).unwrap_or(false);
                 let b1 = ch.ends.map(|e| e[1] == EndKind::Boundary).unwrap_or(false);
-                let cut = cut_of(crossings, segs, &ch.steps, ch.closed, b0, b1);
+                let cut = cut_of(
+                    crossings,
+                    segs,
+                    steps_of(ch),
+                    (ch.closed, b0, b1),
+                    &mut scratch,
+                );
                 let mut lv: Vec<u32> = ch.turns.iter().map(|t| t.1).collect();
                 lv.sort_unstable();
                 lv.dedup();
                 make_path(
-                    &mut paths, kind, None, &ch.steps, ch.closed, ch.ends, lv, cut,
+                    &mut paths,
+                    kind,
+                    None,
+                    steps_of(ch),
+                    ch.closed,
+                    ch.ends,
+                    lv,
+                    cut,
                 );
                 tanglement_kind_of_path.push(None);
             }
             Class::Eight => {
                 let (i, j) = (ch.turns[0].0, ch.turns[1].0);
                 let v = ch.turns[0].1;
-                let lobe1: Vec<(u32, u8)> = ch.steps[i + 1..=j].to_vec();
-                let mut lobe2: Vec<(u32, u8)> = ch.steps[j + 1..].to_vec();
-                lobe2.extend_from_slice(&ch.steps[..=i]);
+                let steps = steps_of(ch);
+                let lobe1: Vec<(u32, u8)> = steps[i + 1..=j].to_vec();
+                let mut lobe2: Vec<(u32, u8)> = steps[j + 1..].to_vec();
+                lobe2.extend_from_slice(&steps[..=i]);
                 for lobe in [lobe1, lobe2] {
-                    let cut = cut_of(crossings, segs, &lobe, true, false, false);
+                    let cut = cut_of(crossings, segs, &lobe, (true, false, false), &mut scratch);
                     make_path(
                         &mut paths,
                         PathKind::Closed,
@@ -508,16 +525,19 @@ pub fn trace_paths(
                     let cut = cut_of(
                         crossings,
                         segs,
-                        &ch.steps,
-                        false,
-                        ends[0] == EndKind::Boundary,
-                        ends[1] == EndKind::Boundary,
+                        steps_of(ch),
+                        (
+                            false,
+                            ends[0] == EndKind::Boundary,
+                            ends[1] == EndKind::Boundary,
+                        ),
+                        &mut scratch,
                     );
                     make_path(
                         &mut paths,
                         PathKind::BoundaryLoopInside,
                         None,
-                        &ch.steps,
+                        steps_of(ch),
                         false,
                         ch.ends,
                         vec![ch.turns[0].1],
@@ -535,8 +555,9 @@ pub fn trace_paths(
                 let halves = |c: &Chain| -> [(Vec<(u32, u8)>, EndKind); 2] {
                     let t = c.turns[0].0;
                     let ends = c.ends.expect("open");
-                    let first: Vec<(u32, u8)> = c.steps[..=t].to_vec();
-                    let last: Vec<(u32, u8)> = c.steps[t + 1..]
+                    let steps = steps_of(c);
+                    let first: Vec<(u32, u8)> = steps[..=t].to_vec();
+                    let last: Vec<(u32, u8)> = steps[t + 1..]
                         .iter()
                         .rev()
                         .map(|&(p, e)| (p, 1 - e))
@@ -552,8 +573,14 @@ pub fn trace_paths(
                     let mut steps = a.0.clone();
                     steps.extend(b.0.iter().rev().map(|&(p, e)| (p, 1 - e)));
                     let is_b = kind == EndKind::Boundary;
-                    let mut cut = cut_of(crossings, segs, &a.0, false, is_b, false);
-                    cut.extend(cut_of(crossings, segs, &b.0, false, is_b, false));
+                    let mut cut = cut_of(crossings, segs, &a.0, (false, is_b, false), &mut scratch);
+                    cut.extend(cut_of(
+                        crossings,
+                        segs,
+                        &b.0,
+                        (false, is_b, false),
+                        &mut scratch,
+                    ));
                     cut.sort_unstable();
                     let mut odd = Vec::new();
                     for e in cut {

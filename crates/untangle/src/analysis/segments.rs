@@ -58,7 +58,12 @@ pub fn build_segments(
         }
     }
     // Stable: equal pairs keep crossing order.
-    crate::radix::sort_by_key(&mut keyed, |k| k.0);
+    crate::radix::sort_by_bucket_then_key(
+        &mut keyed,
+        (mesh.triangles.len(), mesh.triangles.len()),
+        |k| (k.0 >> 32) as u32,
+        |k| k.0 as u32,
+    );
     let mut segments = Vec::with_capacity(keyed.len() / 2 + 1);
     let mut of_crossing = vec![[NONE; 2]; crossings.len()];
     let mut i = 0;

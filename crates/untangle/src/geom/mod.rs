@@ -8,6 +8,7 @@ pub mod ccd;
 pub mod ccd_queries;
 pub mod distance;
 pub mod predicates;
+pub mod tri_pair;
 pub mod tri_tri;
 
 pub use aabb::Aabb;

@@ -89,6 +89,39 @@ pub fn straddling_edge_crosses_triangle_fast(
     straddling_edge_crosses_triangle(p, q, a, b, c, ids)
 }
 
+/// [`edge_crosses_triangle`] with a floating-point rejection first: when two of the three side
+/// orientations of the edge with the triangle's edges are certainly non-zero with opposite signs,
+/// the exact test would answer `false` (it requires all three to agree), so no exact arithmetic
+/// is needed. This decides, e.g., an edge with an endpoint exactly in the triangle's plane but
+/// outside the triangle. The answer is always the exact one.
+#[inline]
+pub fn edge_crosses_triangle_filtered(
+    p: &Vec3,
+    q: &Vec3,
+    a: &Vec3,
+    b: &Vec3,
+    c: &Vec3,
+    ids: [u32; 5],
+) -> bool {
+    let d = q - p;
+    let (pa, pb, pc) = (a - p, b - p, c - p);
+    let t = [
+        d.dot(&pa.cross(&pb)),
+        d.dot(&pb.cross(&pc)),
+        d.dot(&pc.cross(&pa)),
+    ];
+    let l1 = |v: &Vec3| v.x.abs() + v.y.abs() + v.z.abs();
+    let (ld, la, lb, lc) = (l1(&d), l1(&pa), l1(&pb), l1(&pc));
+    let k = 1e-14 * ld;
+    let e = [k * la * lb, k * lb * lc, k * lc * la];
+    let sign = |i: usize| (t[i] > e[i]) as i8 - (t[i] < -e[i]) as i8;
+    let s = [sign(0), sign(1), sign(2)];
+    if s.contains(&1) && s.contains(&-1) {
+        return false;
+    }
+    edge_crosses_triangle(p, q, a, b, c, ids)
+}
+
 /// A triangle's plane with a certified floating-point side test.
 #[derive(Clone, Copy, Debug)]
 pub struct CertifiedPlane {
@@ -109,6 +142,13 @@ impl CertifiedPlane {
             // Forward error bound of n . (p - a), over |p - a|_1 (generously rounded up).
             k: 1e-14 * l1(&ab) * l1(&ac),
         }
+    }
+
+    /// The plane with normal `n = (b - a) x (c - a)` (as computed), corner `a` and error factor
+    /// `k`, as [`CertifiedPlane::new`] computes them.
+    #[inline]
+    pub(crate) fn from_parts(n: Vec3, a: Vec3, k: Real) -> Self {
+        CertifiedPlane { n, a, k }
     }
 
     /// The (unnormalised) normal `(b - a) x (c - a)`.
@@ -456,6 +496,32 @@ mod tests {
                 prop_assert_eq!(
                     straddling_edge_crosses_triangle_fast(&p[0], &p[1], &p[2], &p[3], &p[4], ids),
                     straddling_edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], ids)
+                );
+            }
+        }
+
+        /// The filtered exact test equals the exact test, on random, lattice (ties) and
+        /// near-degenerate input (an endpoint on or near the triangle's plane).
+        #[test]
+        fn filtered_test_is_exact(
+            pts in proptest::array::uniform5(proptest::array::uniform3(-1.0f64..1.0)),
+            lattice in proptest::array::uniform5(proptest::array::uniform3(-2i32..=2)),
+            tiny in prop_oneof![Just(0.0), 1e-17f64..1e-12],
+        ) {
+            let rnd: Vec<Vec3> = pts.iter().map(|c| v(c[0], c[1], c[2])).collect();
+            let mut onplane = rnd.clone();
+            let n = (rnd[3] - rnd[2]).cross(&(rnd[4] - rnd[2]));
+            let d = n.dot(&(rnd[0] - rnd[2])) / n.norm_squared();
+            onplane[0] = rnd[0] - n * d + v(tiny, 0.0, -tiny);
+            for p in [
+                rnd,
+                lattice.iter().map(|c| v(c[0] as f64, c[1] as f64, c[2] as f64)).collect::<Vec<_>>(),
+                onplane,
+            ] {
+                let ids = [0, 1, 2, 3, 4];
+                prop_assert_eq!(
+                    edge_crosses_triangle_filtered(&p[0], &p[1], &p[2], &p[3], &p[4], ids),
+                    edge_crosses_triangle(&p[0], &p[1], &p[2], &p[3], &p[4], ids)
                 );
             }
         }

@@ -1,0 +1,336 @@
+//! All edge-triangle crossings of a triangle pair decided at once, in floating point with
+//! certified error bounds (the crossings of Wicke et al. 2006, Sec. 4, between two triangles
+//! without a common vertex).
+//!
+//! When every corner of each triangle is certainly strictly on one side of the other's plane and
+//! both triangles straddle the other's plane, the common line `L` of the two planes meets each
+//! triangle in an interval whose ends lie on its two *straddling* edges. An edge `e` of one
+//! triangle that straddles the other triangle `T` meets `T`'s plane in a point `X` of `L`; `X` is
+//! inside `T` iff it lies between the two ends of `T`'s interval, i.e. iff the edge-edge
+//! orientations `orient3d(e, f1)` and `orient3d(e, f2)` with `T`'s straddling edges `f1`, `f2` have
+//! the same sign (the third orientation, with `T`'s non-straddling edge, then agrees as well:
+//! the open interval lies inside `T`). Both directions use the same four orientations, so a pair
+//! costs six plane sides and four orientations instead of up to twelve orientations edge by edge.
+//! Whenever a sign is not certified the pair is [`PairOutcome::Undecided`] and the caller falls
+//! back to the exact, symbolically perturbed tests; every certified answer equals the exact one,
+//! so the results are identical.
+
+use super::tri_tri::CertifiedPlane;
+use super::{Real, Vec3};
+
+/// A triangle with what the pair kernel needs: corners, plane and error-bound factors.
+#[derive(Clone, Copy, Debug)]
+pub struct PreparedTriangle {
+    /// Corners.
+    pub corners: [Vec3; 3],
+    /// Unnormalised normal `(c1 - c0) x (c2 - c0)`.
+    n: Vec3,
+    /// Forward error factor of the plane side `n . (p - c0)` per unit of `|p - c0|_1`.
+    k: Real,
+    /// Largest L1 distance of a corner from `c0`.
+    reach: Real,
+    /// L1 length of edge `c[i] -> c[i + 1]`.
+    edge_l1: [Real; 3],
+}
+
+/// What [`pair_crossings`] found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PairOutcome {
+    /// One triangle is certainly strictly on one side of the other's plane: no crossing.
+    Apart,
+    /// The exact answer for every edge: bit `i` = edge `i` of `a` crosses `b`, bit `3 + j` =
+    /// edge `j` of `b` crosses `a` (edge `i` runs from corner `i` to corner `i + 1`).
+    Crossings(u8),
+    /// Not certified; the certified plane sides (`0` = too close to tell) of `a`'s corners with
+    /// respect to `b`'s plane and of `b`'s corners with respect to `a`'s plane, in the sign
+    /// convention of [`super::tri_tri::CertifiedPlane::side`].
+    Undecided {
+        /// Sides of `a`'s corners.
+        sides_a: [i8; 3],
+        /// Sides of `b`'s corners.
+        sides_b: [i8; 3],
+    },
+}
+
+#[inline]
+fn l1(v: &Vec3) -> Real {
+    v.x.abs() + v.y.abs() + v.z.abs()
+}
+
+/// Relative forward error bound used for the plane sides and the edge-edge orientations: a
+/// triple product of rounded differences has a relative error of about 8 ulps of the product of
+/// the L1 norms; 1e-14 leaves a wide margin (also for the rounding of the norms themselves).
+const EPS: Real = 1e-14;
+
+impl PreparedTriangle {
+    /// Prepares triangle `(a, b, c)`.
+    #[inline]
+    pub fn new(a: &Vec3, b: &Vec3, c: &Vec3) -> Self {
+        let (ab, ac, bc) = (b - a, c - a, c - b);
+        let (lab, lac) = (l1(&ab), l1(&ac));
+        PreparedTriangle {
+            corners: [*a, *b, *c],
+            n: ab.cross(&ac),
+            k: EPS * lab * lac,
+            reach: lab.max(lac),
+            edge_l1: [lab, l1(&bc), lac],
+        }
+    }
+
+    /// The certified plane of the triangle (the same plane and bound as
+    /// [`CertifiedPlane::new`] on its corners).
+    #[inline]
+    pub fn plane(&self) -> CertifiedPlane {
+        CertifiedPlane::from_parts(self.n, self.corners[0], self.k)
+    }
+}
+
+/// Certified sides of `p`'s corners with respect to `plane`'s plane, with `|p_i - c0|_1 <= r`,
+/// as two bit masks: bit `i` of the first = corner `i` certainly on the positive side, of the
+/// second = certainly on the negative side.
+#[inline(always)]
+fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
+    let tol = plane.k * r;
+    let o = plane.corners[0];
+    let n = plane.n;
+    let (mut pos, mut neg) = (0u8, 0u8);
+    for (i, x) in p.corners.iter().enumerate() {
+        let s = n.x * (x.x - o.x) + n.y * (x.y - o.y) + n.z * (x.z - o.z);
+        pos |= ((s > tol) as u8) << i;
+        neg |= ((s < -tol) as u8) << i;
+    }
+    (pos, neg)
+}
+
+/// The side masks as signs (`+1`, `-1`, `0` = not certified).
+#[inline]
+fn signs((pos, neg): (u8, u8)) -> [i8; 3] {
+    std::array::from_fn(|i| ((pos >> i) & 1) as i8 - ((neg >> i) & 1) as i8)
+}
+
+/// For a positive-side mask of a straddling triangle (1..=6, all corners certified): its two
+/// straddling edges, i.e. the two edges at the corner alone on its side.
+const STRADDLING: [[usize; 2]; 7] = [[0, 0], [2, 0], [0, 1], [1, 2], [1, 2], [0, 1], [2, 0]];
+
+/// Decides every edge-triangle crossing between triangles `a` and `b`, which must not share a
+/// vertex; see the module docs. A certified answer is the exact one, also under the symbolic
+/// perturbation of [`super::predicates::orient3d_sos`] (certified values are non-zero).
+#[inline]
+pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome {
+    // Every corner difference is bounded in L1 by the reaches plus the distance of the c0s.
+    let r = a.reach + b.reach + l1(&(a.corners[0] - b.corners[0]));
+    let ma = side_masks(a, b, r);
+    if ma.0 == 7 || ma.1 == 7 {
+        return PairOutcome::Apart;
+    }
+    let mb = side_masks(b, a, r);
+    if mb.0 == 7 || mb.1 == 7 {
+        return PairOutcome::Apart;
+    }
+    if (ma.0 | ma.1) != 7 || (mb.0 | mb.1) != 7 {
+        return PairOutcome::Undecided {
+            sides_a: signs(ma),
+            sides_b: signs(mb),
+        };
+    }
+    let (ia, ib) = (STRADDLING[ma.0 as usize], STRADDLING[mb.0 as usize]);
+    const NEXT: [usize; 3] = [1, 2, 0];
+    let edge = |t: &PreparedTriangle, i: usize| t.corners[NEXT[i]] - t.corners[i];
+    let ea = [edge(a, ia[0]), edge(a, ia[1])];
+    let eb = [edge(b, ib[0]), edge(b, ib[1])];
+    // o[x][y]: orientation of a's straddling edge x with b's straddling edge y,
+    // det[q - p, s - p, t - p] for a's edge (p, q) and b's edge (s, t).
+    let mut pos = [[false; 2]; 2];
+    for x in 0..2 {
+        for y in 0..2 {
+            let rr = b.corners[ib[y]] - a.corners[ia[x]];
+            let o = rr.dot(&eb[y].cross(&ea[x]));
+            let bound = EPS * r * a.edge_l1[ia[x]] * b.edge_l1[ib[y]];
+            // NaN is never certified.
+            let certified = o.abs() > bound;
+            if !certified {
+                return PairOutcome::Undecided {
+                    sides_a: signs(ma),
+                    sides_b: signs(mb),
+                };
+            }
+            pos[x][y] = o > 0.0;
+        }
+    }
+    let mut mask = 0u8;
+    for x in 0..2 {
+        mask |= ((pos[x][0] == pos[x][1]) as u8) << ia[x];
+    }
+    for y in 0..2 {
+        mask |= ((pos[0][y] == pos[1][y]) as u8) << (3 + ib[y]);
+    }
+    PairOutcome::Crossings(mask)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tri_tri::edge_crosses_triangle;
+    use super::*;
+    use proptest::prelude::*;
+
+    fn v(c: [f64; 3]) -> Vec3 {
+        Vec3::new(c[0], c[1], c[2])
+    }
+
+    /// The exact, symbolically perturbed answer for every edge of the pair (the oracle).
+    fn exact_mask(p: &[Vec3; 6]) -> u8 {
+        let mut mask = 0;
+        for (off, (x, y)) in [(0u8, (0usize, 3usize)), (3, (3, 0))] {
+            for i in 0..3 {
+                let (e0, e1) = (x + i, x + (i + 1) % 3);
+                let ids = [e0 as u32, e1 as u32, y as u32, y as u32 + 1, y as u32 + 2];
+                if edge_crosses_triangle(&p[e0], &p[e1], &p[y], &p[y + 1], &p[y + 2], ids) {
+                    mask |= 1 << (off + i as u8);
+                }
+            }
+        }
+        mask
+    }
+
+    fn check(p: &[Vec3; 6]) -> Result<(), TestCaseError> {
+        let a = PreparedTriangle::new(&p[0], &p[1], &p[2]);
+        let b = PreparedTriangle::new(&p[3], &p[4], &p[5]);
+        let exact = exact_mask(p);
+        match pair_crossings(&a, &b) {
+            PairOutcome::Apart => prop_assert_eq!(exact, 0),
+            PairOutcome::Crossings(m) => prop_assert_eq!(m, exact),
+            PairOutcome::Undecided { sides_a, sides_b } => {
+                // Certified sides agree with the exact plane sides (the sign convention of
+                // `CertifiedPlane::side`: that of `-orient3d`).
+                let exact_side = |q: &[Vec3], x: &Vec3| {
+                    -super::super::predicates::orient3d(&q[0], &q[1], &q[2], x).signum() as i8
+                };
+                for i in 0..3 {
+                    if sides_a[i] != 0 {
+                        prop_assert_eq!(sides_a[i], exact_side(&p[3..], &p[i]));
+                    }
+                    if sides_b[i] != 0 {
+                        prop_assert_eq!(sides_b[i], exact_side(&p[..3], &p[3 + i]));
+                    }
+                    let (pa, pb) = (
+                        CertifiedPlane::new(&p[0], &p[1], &p[2]),
+                        CertifiedPlane::new(&p[3], &p[4], &p[5]),
+                    );
+                    // Never certified where the per-corner test is not (same convention).
+                    if sides_a[i] != 0 && pb.side(&p[i]) != 0 {
+                        prop_assert_eq!(sides_a[i], pb.side(&p[i]));
+                    }
+                    if sides_b[i] != 0 && pa.side(&p[3 + i]) != 0 {
+                        prop_assert_eq!(sides_b[i], pa.side(&p[3 + i]));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    proptest! {
+        /// Random pairs: every decided pair matches the exact edge-by-edge test.
+        #[test]
+        fn decided_pairs_match_the_exact_test(
+            pts in proptest::array::uniform6(proptest::array::uniform3(-1.0f64..1.0)),
+            scale in 1e-3f64..1e3,
+            shift in proptest::array::uniform3(-100.0f64..100.0),
+        ) {
+            let s = v(shift);
+            let p: [Vec3; 6] = std::array::from_fn(|i| v(pts[i]) * scale + s);
+            check(&p)?;
+        }
+
+        /// Near-degenerate pairs: an edge through (almost) a corner or an edge of the other
+        /// triangle, corners (almost) in the other plane, and integer lattices with exact ties.
+        #[test]
+        fn near_degenerate_pairs_match_the_exact_test(
+            pts in proptest::array::uniform6(proptest::array::uniform3(-1.0f64..1.0)),
+            lattice in proptest::array::uniform6(proptest::array::uniform3(-2i32..=2)),
+            tiny in prop_oneof![Just(0.0), 1e-17f64..1e-15, 1e-15f64..1e-9],
+            which in 0usize..6,
+            t in 0.0f64..1.0,
+        ) {
+            let p: [Vec3; 6] = std::array::from_fn(|i| v(pts[i]));
+            // Corner `which` moved onto (near) a point of the other triangle's edge 0, or onto
+            // (near) the other triangle's plane.
+            let other = if which < 3 { 3 } else { 0 };
+            let on_edge = p[other] + (p[other + 1] - p[other]) * t;
+            let mut q = p;
+            q[which] = on_edge + Vec3::new(tiny, -tiny, 0.5 * tiny);
+            check(&q)?;
+            let n = (p[other + 1] - p[other]).cross(&(p[other + 2] - p[other]));
+            let mut r = p;
+            let d = n.dot(&(p[which] - p[other])) / n.norm_squared();
+            r[which] = p[which] - n * d + Vec3::new(tiny, tiny, -tiny);
+            check(&r)?;
+            let l: [Vec3; 6] = std::array::from_fn(|i| {
+                Vec3::new(lattice[i][0] as f64, lattice[i][1] as f64, lattice[i][2] as f64)
+            });
+            check(&l)?;
+        }
+    }
+
+    /// The kernel decides almost every random pair (so the tests above exercise it), and every
+    /// decision matches the oracle.
+    #[test]
+    fn random_pairs_are_mostly_decided() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let (mut crossing, mut apart, mut undecided) = (0, 0, 0);
+        for _ in 0..4000 {
+            let p: [Vec3; 6] = std::array::from_fn(|_| {
+                Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                )
+            });
+            let (a, b) = (
+                PreparedTriangle::new(&p[0], &p[1], &p[2]),
+                PreparedTriangle::new(&p[3], &p[4], &p[5]),
+            );
+            match pair_crossings(&a, &b) {
+                PairOutcome::Crossings(m) => {
+                    assert_eq!(m, exact_mask(&p));
+                    crossing += (m != 0) as usize;
+                }
+                PairOutcome::Apart => {
+                    assert_eq!(exact_mask(&p), 0);
+                    apart += 1;
+                }
+                PairOutcome::Undecided { .. } => undecided += 1,
+            }
+        }
+        assert!(crossing > 500 && apart > 500, "{crossing} {apart}");
+        assert!(undecided < 10, "{undecided}");
+    }
+
+    #[test]
+    fn a_piercing_pair_is_decided_exactly() {
+        // Triangle b pierces a through its interior: b's edges 1 and 2 cross a.
+        let p = [
+            v([0.0, 0.0, 0.0]),
+            v([1.0, 0.0, 0.0]),
+            v([0.0, 1.0, 0.0]),
+            v([0.2, 0.2, 1.0]),
+            v([0.3, 0.2, -1.0]),
+            v([0.2, 0.3, -1.0]),
+        ];
+        let (a, b) = (
+            PreparedTriangle::new(&p[0], &p[1], &p[2]),
+            PreparedTriangle::new(&p[3], &p[4], &p[5]),
+        );
+        assert_eq!(
+            pair_crossings(&a, &b),
+            PairOutcome::Crossings(exact_mask(&p))
+        );
+        assert_eq!(exact_mask(&p), 0b101000);
+        // Far apart along z.
+        let far: [Vec3; 6] =
+            std::array::from_fn(|i| p[i] + Vec3::new(0.0, 0.0, 3.0 * (i / 3) as f64));
+        let b2 = PreparedTriangle::new(&far[3], &far[4], &far[5]);
+        assert_eq!(pair_crossings(&a, &b2), PairOutcome::Apart);
+    }
+}
