@@ -983,8 +983,8 @@ mod tests {
         /// the hierarchy was built for a different matrix and filter (reuse across steps).
         #[test]
         fn preconditioner_is_symmetric_positive_definite(
-            nx in 5usize..11,
-            ny in 5usize..11,
+            nx in 6usize..12,
+            ny in 6usize..12,
             k in 10.0f64..1e5,
             seed in 0u64..1000,
             reuse in proptest::bool::ANY,
@@ -999,7 +999,9 @@ mod tests {
             } else {
                 prop_assert!(amg.build(&p, &a, &filter, &positions(nx, ny)));
             }
-            prop_assert!(amg.levels() >= 2);
+            // Small grids may not coarsen at all (then the "cycle" is the dense solve).
+            let levels = amg.levels();
+            prop_assert!(levels >= 1);
             let pre = amg.preconditioner(&p, &a, &filter).unwrap();
             let m = dense_of(&|r, o| { pre.apply(r, o); }, n);
             let scale = m.amax();
