@@ -50,6 +50,15 @@ fn main() {
         if let Some(v) = env("CHAKO_REVOKE") {
             p.cha_ko.revoke_levels_per_step = v as u32;
         }
+        if let Some(v) = env("CHAKO_PERSIST") {
+            p.cha_ko.persistent_green = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_MIXED_GREEN") {
+            p.cha_ko.mixed_edges_green = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_LAST_RESORT") {
+            p.cha_ko.loop_target_last_resort = v != 0.0;
+        }
         if let Some(v) = env("CHAKO_GAMMA") {
             p.cha_ko.gamma = v;
         }

@@ -1176,3 +1176,117 @@ fn red_star_triangles_are_not_shrunk_toward_a_loop_vertex() {
         .operations()
         .any(|o| o.kind == OpKind::Shrink && loops.contains(&o.target)));
 }
+
+/// Neighbours of `x` in the order the pull's target choice ranks them (original uv length, then
+/// index): the oracle of the loop-vertex tests below.
+fn ranked_neighbours(g: &Garment, x: u32) -> Vec<u32> {
+    let uv = &g.uv().coords;
+    let copy = |v: u32| g.uv_copies.row(v as usize)[0] as usize;
+    let mut ws: Vec<(f64, u32)> = g
+        .topology
+        .vertex_neighbors
+        .row(x as usize)
+        .iter()
+        .map(|&w| ((uv[copy(w)] - uv[copy(x)]).norm(), w))
+        .collect();
+    ws.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    ws.into_iter().map(|(_, w)| w).collect()
+}
+
+#[test]
+fn pulls_avoid_loop_vertex_targets_while_another_green_neighbour_exists() {
+    // Seed 13 of the exploded handkerchief: a red vertex pulled toward a loop vertex of an LL
+    // path saturated three times (the triangle it had to cross contains the target).
+    let n = 4;
+    let g = grid(n);
+    let x = gid(n, 2, 2);
+    let ranked = ranked_neighbours(&g, x);
+    let col = coloring(&g, &[x], &[], &[]);
+    let first = |loops: &[u32]| {
+        let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+        let r = ck.update_uv_with_loops(&col, loops, None).unwrap();
+        assert_eq!(r.pulls_started, 1);
+        let t = ck.operations().next().unwrap().target;
+        (t, r)
+    };
+    assert_eq!(first(&[]).0, ranked[0]);
+    let (t, r) = first(&[ranked[0]]);
+    assert_eq!((t, r.pull_loop_targets_skipped), (ranked[1], 1));
+    let (t, _) = first(&ranked[..3]);
+    assert_eq!(t, ranked[3]);
+    // Every green neighbour a loop vertex: the paper's choice stands.
+    let (t, r) = first(&ranked);
+    assert_eq!((t, r.pull_loop_targets_skipped), (ranked[0], 0));
+
+    // A running pull whose target becomes a loop vertex ends and is revoked; once x is back,
+    // it is pulled toward the next neighbour.
+    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    for _ in 0..3 {
+        ck.update_uv_with_loops(&col, &[], None).unwrap();
+    }
+    assert_eq!(ck.operations().next().unwrap().level, 3);
+    let mut levels = Vec::new();
+    for _ in 0..4 {
+        let r = ck.update_uv_with_loops(&col, &[ranked[0]], None).unwrap();
+        levels.push((r.revoked_levels, r.pulls_started));
+    }
+    assert_eq!(levels, vec![(1, 0), (1, 0), (1, 0), (0, 1)]);
+    let op = ck.operations().next().unwrap();
+    assert_eq!((op.target, op.level), (ranked[1], 1));
+    assert!(ck.inverted_uv_triangles().is_empty());
+}
+
+#[test]
+fn a_red_star_shrink_toward_a_loop_vertex_is_a_last_resort() {
+    let n = 6;
+    let g = grid(n);
+    let topo = &g.topology;
+    // One penetrating edge inside the sheet; its triangles are the red* ones.
+    let (a, b) = (gid(n, 2, 2), gid(n, 3, 2));
+    let e = topo.edge_between(a, b).unwrap();
+    let only_star = coloring(&g, &[], &[(a, b)], &[]);
+    assert_eq!(only_star.red_star.len(), 2);
+    let target = |t: u32| {
+        let tri = g.mesh.triangles[t as usize];
+        *tri.iter().find(|&&v| v != a && v != b).unwrap()
+    };
+    let loops: Vec<u32> = only_star.red_star.iter().map(|&t| target(t)).collect();
+    assert!(topo.edge_triangles[e as usize]
+        .iter()
+        .all(|t| only_star.red_star.contains(t)));
+
+    // Something else to do (an out-most red vertex far away): the loop targets are skipped.
+    let far = gid(n, 5, 5);
+    let busy = coloring(&g, &[far], &[(a, b)], &[]);
+    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    let r = ck.update_uv_with_loops(&busy, &loops, None).unwrap();
+    assert_eq!((r.blocked_loop_target, r.shrinks_started), (2, 0));
+    assert_eq!(r.pulls_started, 1);
+
+    // Nothing else: the first red* triangle (sorted order) is shrunk toward its loop target and
+    // continues while it stays red*; the second is adjacent (Case 2) and waits.
+    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    let r = ck.update_uv_with_loops(&only_star, &loops, None).unwrap();
+    assert_eq!((r.shrinks_started, r.loop_target_last_resort), (1, 1));
+    let op = ck.operations().next().unwrap().clone();
+    assert_eq!(op.triangle, only_star.red_star[0]);
+    assert_eq!(op.target, target(op.triangle));
+    for s in 2..=4 {
+        let r = ck.update_uv_with_loops(&only_star, &loops, None).unwrap();
+        assert_eq!((r.shrinks_continued, r.shrinks_started), (1, 0), "step {s}");
+        assert_eq!(ck.operations().next().unwrap().level, s);
+    }
+    assert!(ck.inverted_uv_triangles().is_empty());
+
+    // Off: the rule of the loop-vertex fix alone.
+    let mut ck = ChaKo::new(
+        &g,
+        Params {
+            loop_target_last_resort: false,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    let r = ck.update_uv_with_loops(&only_star, &loops, None).unwrap();
+    assert_eq!((r.blocked_loop_target, r.shrinks_started), (2, 0));
+}

@@ -37,6 +37,16 @@ pub struct Params {
     /// inversion test (Sec. 6.1; the paper's Appendix C is not available). When off, such
     /// subjects are reported as stalled at once.
     pub fallback: bool,
+    /// Persistent green (ours, see docs/cha-ko.md): a vertex that was green at the previous
+    /// step stays green, whatever the analysis's region classification now says.
+    pub persistent_green: bool,
+    /// Shrink red* triangles toward a loop vertex when nothing else can be done (ours, see
+    /// [`super::schedule`]): nothing in progress, no out-most red vertex, every red* triangle's
+    /// target a loop vertex.
+    pub loop_target_last_resort: bool,
+    /// m-CCH experiment (ours): an edge with one red and one green end counts as green in
+    /// edge-edge pairs, so it never crosses another edge.
+    pub mixed_edges_green: bool,
 }
 
 impl Default for Params {
@@ -51,6 +61,9 @@ impl Default for Params {
             hold_steps: 20,
             revoke_levels_per_step: 1,
             fallback: true,
+            persistent_green: false,
+            loop_target_last_resort: true,
+            mixed_edges_green: false,
         }
     }
 }

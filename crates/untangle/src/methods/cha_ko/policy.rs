@@ -63,6 +63,9 @@ pub struct MchPolicy<'a> {
     pub eps: f64,
     /// Red-green thickness.
     pub eps_rg: f64,
+    /// Treat an edge with exactly one red end as green in edge-edge pairs (experiment, see
+    /// [`super::Params::mixed_edges_green`]).
+    pub mixed_edges_green: bool,
 }
 
 impl<'a> MchPolicy<'a> {
@@ -73,7 +76,22 @@ impl<'a> MchPolicy<'a> {
             coloring,
             eps,
             eps_rg,
+            mixed_edges_green: false,
         }
+    }
+
+    /// Whether edge `e` (analysis-mesh topology index) counts as red in edge-edge pairs.
+    #[inline]
+    fn edge_red(&self, e: u32) -> bool {
+        let c = self.coloring;
+        if !c.red_edge[e as usize] {
+            return false;
+        }
+        if self.mixed_edges_green {
+            let [a, b] = self.mesh.topology.edges[e as usize];
+            return c.red_vertex[a as usize] == c.red_vertex[b as usize];
+        }
+        true
     }
 
     fn vertex_is_cloth(&self, v: u32) -> bool {
@@ -103,10 +121,7 @@ impl<'a> MchPolicy<'a> {
         if !cloth(e0) || !cloth(e1) {
             return PairColour::GreenGreen;
         }
-        pair_colour(
-            self.coloring.red_edge[e0 as usize],
-            self.coloring.red_edge[e1 as usize],
-        )
+        pair_colour(self.edge_red(e0), self.edge_red(e1))
     }
 
     /// Rule for the edge `(a0, a1)` against the edge `(b0, b1)`, given by their vertices. An
@@ -115,7 +130,7 @@ impl<'a> MchPolicy<'a> {
         let topo = &self.mesh.topology;
         let red = |e: [u32; 2]| {
             topo.edge_between(e[0], e[1])
-                .is_some_and(|i| self.coloring.red_edge[i as usize])
+                .is_some_and(|i| self.edge_red(i))
         };
         let cloth = |e: [u32; 2]| self.vertex_is_cloth(e[0]);
         let colour = if cloth(a) && cloth(b) {
@@ -149,10 +164,7 @@ impl ContactPolicy for MchPolicy<'_> {
     #[inline]
     fn edge_edge(&self, edge_a: u32, edge_b: u32) -> Contact {
         rule(
-            pair_colour(
-                self.coloring.red_edge[edge_a as usize],
-                self.coloring.red_edge[edge_b as usize],
-            ),
+            pair_colour(self.edge_red(edge_a), self.edge_red(edge_b)),
             self.eps,
             self.eps_rg,
         )
