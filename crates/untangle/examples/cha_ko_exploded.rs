@@ -53,8 +53,10 @@ fn main() {
         if let Some(v) = env("CHAKO_PERSIST") {
             p.cha_ko.persistent_green = v != 0.0;
         }
-        if let Some(v) = env("CHAKO_MIXED_GREEN") {
-            p.cha_ko.mixed_edges_green = v != 0.0;
+        if let Some(v) = env("CHAKO_MIXED") {
+            use untangle::methods::cha_ko::MixedEdges;
+            p.cha_ko.mixed_edges =
+                [MixedEdges::Red, MixedEdges::Green, MixedEdges::NotWithMixed][v as usize];
         }
         if let Some(v) = env("CHAKO_LAST_RESORT") {
             p.cha_ko.loop_target_last_resort = v != 0.0;

@@ -1290,3 +1290,126 @@ fn a_red_star_shrink_toward_a_loop_vertex_is_a_last_resort() {
     let r = ck.update_uv_with_loops(&only_star, &loops, None).unwrap();
     assert_eq!((r.blocked_loop_target, r.shrinks_started), (2, 0));
 }
+
+#[test]
+fn mixed_edge_rules_decide_edge_pairs_from_the_end_colours() {
+    // Oracle: an edge is mixed when exactly one end is red (Sec. 3 makes it red); the rules
+    // change only pairs with a mixed edge, and never let a mixed edge cross under `Green`.
+    use untangle::analysis::{analyze, AnalysisMesh};
+    use untangle::methods::cha_ko::{MixedEdges, PairColour};
+    use untangle::sim::{Contact as ContactRule, ContactPolicy};
+    let g = Garment::new({
+        let scene = untangle::scenes::closed(10);
+        let (am2, pos) = AnalysisMesh::new(&[
+            (&scene.meshes[0], untangle::analysis::ObjectKind::Cloth),
+            (&scene.meshes[1], untangle::analysis::ObjectKind::Cloth),
+        ])
+        .unwrap();
+        am2.merged(&pos, &[&scene.meshes[0], &scene.meshes[1]])
+    })
+    .unwrap();
+    let (am, pos) = AnalysisMesh::single(&g.mesh).unwrap();
+    let a = analyze(&am, &pos).unwrap();
+    let col = &a.coloring;
+    let edges = &g.topology.edges;
+    let mixed =
+        |e: usize| col.red_vertex[edges[e][0] as usize] != col.red_vertex[edges[e][1] as usize];
+    let n_mixed = (0..edges.len()).filter(|&e| mixed(e)).count();
+    assert!(n_mixed > 0);
+    let mut counts = [0usize; 3];
+    for rule in [MixedEdges::Red, MixedEdges::Green, MixedEdges::NotWithMixed] {
+        let ck = ChaKo::new(
+            &g,
+            Params {
+                mixed_edges: rule,
+                ..Params::default()
+            },
+        )
+        .unwrap();
+        let pol = ck.contact_policy(&am, &a);
+        for e in 0..edges.len() {
+            for f in (0..edges.len()).step_by(3) {
+                let (re, rf) = (col.red_edge[e], col.red_edge[f]);
+                let want = match rule {
+                    MixedEdges::Red => (re, rf),
+                    MixedEdges::Green => (re && !mixed(e), rf && !mixed(f)),
+                    MixedEdges::NotWithMixed if mixed(e) && mixed(f) => (false, true),
+                    MixedEdges::NotWithMixed => (re, rf),
+                };
+                let want = match want {
+                    (true, true) => PairColour::RedRed,
+                    (false, false) => PairColour::GreenGreen,
+                    _ => PairColour::RedGreen,
+                };
+                assert_eq!(pol.edge_edge_colour(e as u32, f as u32), want);
+                let c = pol.edge_edge(e as u32, f as u32);
+                if rule == MixedEdges::Green && (mixed(e) || mixed(f)) {
+                    assert_ne!(c, ContactRule::Skip, "a mixed edge may not cross");
+                }
+                if c == ContactRule::Skip {
+                    counts[rule as usize] += 1;
+                }
+            }
+        }
+    }
+    // The paper's rule lets the most pairs cross, `Green` the fewest.
+    assert!(counts[0] > counts[2] && counts[2] > counts[1], "{counts:?}");
+}
+
+#[test]
+fn persistent_green_never_turns_a_green_vertex_red() {
+    // Oracle: the Sec. 3 colouring (`coloring::color`) of the analysis's red vertices restricted
+    // to those red at the previous call.
+    use untangle::analysis::{analyze, coloring::color, AnalysisMesh};
+    let scene = untangle::scenes::closed(10);
+    let (am2, pos) = AnalysisMesh::new(&[
+        (&scene.meshes[0], untangle::analysis::ObjectKind::Cloth),
+        (&scene.meshes[1], untangle::analysis::ObjectKind::Cloth),
+    ])
+    .unwrap();
+    let g = Garment::new(am2.merged(&pos, &[&scene.meshes[0], &scene.meshes[1]])).unwrap();
+    let (am, pos) = AnalysisMesh::single(&g.mesh).unwrap();
+    let a0 = analyze(&am, &pos).unwrap();
+    let red0 = a0.coloring.red_vertex.clone();
+    let (on, off) = (
+        Params {
+            persistent_green: true,
+            ..Params::default()
+        },
+        Params::default(),
+    );
+    let mut ck = ChaKo::new(&g, on).unwrap();
+    let mut first = a0.clone();
+    ck.persist_coloring(&am, &mut first);
+    assert_eq!(
+        first.coloring, a0.coloring,
+        "the first call keeps the analysis"
+    );
+    // Next step: pretend half of the red vertices turned green and some green ones red.
+    let mut a1 = a0.clone();
+    let mut red1 = red0.clone();
+    let mut flipped = 0;
+    for (v, r) in red1.iter_mut().enumerate() {
+        if v % 2 == 0 {
+            *r = !*r;
+            flipped += 1;
+        }
+    }
+    assert!(flipped > 0);
+    a1.coloring = color(&am, red1.clone(), &a1.crossings, &a1.segments);
+    let mut got = a1.clone();
+    ck.persist_coloring(&am, &mut got);
+    let want: Vec<bool> = red1.iter().zip(&red0).map(|(&a, &b)| a && b).collect();
+    assert_eq!(
+        got.coloring,
+        color(&am, want.clone(), &a1.crossings, &a1.segments)
+    );
+    assert!(got.coloring.num_red_vertices() <= a0.coloring.num_red_vertices());
+    // Off: untouched.
+    let mut ck = ChaKo::new(&g, off).unwrap();
+    let mut x = a0.clone();
+    ck.persist_coloring(&am, &mut x);
+    let mut y = a1.clone();
+    ck.persist_coloring(&am, &mut y);
+    assert_eq!(y.coloring, a1.coloring);
+}

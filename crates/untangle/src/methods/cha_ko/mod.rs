@@ -35,7 +35,7 @@ pub mod tit;
 
 pub use fallback::Fallback;
 pub use params::Params;
-pub use policy::{MchPolicy, PairColour};
+pub use policy::{MchPolicy, MixedEdges, PairColour};
 pub use report::{EndReason, FinesseRecord, FinesseStats, Stall, StallReason, UvUpdateReport};
 pub use resolve::{LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver};
 pub use seams::SeamKind;
@@ -258,7 +258,7 @@ impl ChaKo {
         analysis: &'a Analysis,
     ) -> MchPolicy<'a> {
         let mut p = MchPolicy::new(am, &analysis.coloring, self.params.eps, self.eps_rg);
-        p.mixed_edges_green = self.params.mixed_edges_green;
+        p.mixed_edges = self.params.mixed_edges;
         p
     }
 

@@ -1,6 +1,7 @@
 //! Parameters of the method (Cha & Ko 2022, Sec. 5.1, 5.3.1 and 9: gamma = 0.8, dt = 0.02 s,
 //! epsilon_RG = 0.1 x average edge length, epsilon_CCD = 1e-6).
 
+use super::policy::MixedEdges;
 use crate::error::{Error, Result};
 
 /// The smallest scale `gamma^level` any operation reaches (a subject edge keeps at least this
@@ -44,9 +45,9 @@ pub struct Params {
     /// [`super::schedule`]): nothing in progress, no out-most red vertex, every red* triangle's
     /// target a loop vertex.
     pub loop_target_last_resort: bool,
-    /// m-CCH experiment (ours): an edge with one red and one green end counts as green in
-    /// edge-edge pairs, so it never crosses another edge.
-    pub mixed_edges_green: bool,
+    /// Which edge-edge pairs with a *mixed* edge (one red, one green end) m-CCH lets cross
+    /// (experiment, ours; see [`MixedEdges`]). Default: the paper's (such an edge is red).
+    pub mixed_edges: MixedEdges,
 }
 
 impl Default for Params {
@@ -63,7 +64,7 @@ impl Default for Params {
             fallback: true,
             persistent_green: false,
             loop_target_last_resort: true,
-            mixed_edges_green: false,
+            mixed_edges: MixedEdges::Red,
         }
     }
 }

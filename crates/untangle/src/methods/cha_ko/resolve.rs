@@ -272,7 +272,7 @@ impl Resolver {
             Some(c) => {
                 let p = &self.chako.params;
                 let mut policy = super::MchPolicy::new(&self.am, c, p.eps, self.chako.eps_rg);
-                policy.mixed_edges_green = p.mixed_edges_green;
+                policy.mixed_edges = p.mixed_edges;
                 self.sim.step(&policy)
             }
             None => self.sim.step(&UniformThickness(self.chako.params.eps)),

@@ -43,7 +43,20 @@
 //!   triangle *of the same fan*, along a segment that starts at the target itself. Shrinking
 //!   toward the target scales that segment but never removes it: the operation can only
 //!   saturate (it did, and held the LL case stuck). Such triangles are left to the pulls of the
-//!   red region around them and to the red* triangle across the same red edge.
+//!   red region around them and to the red* triangle across the same red edge. As a *last
+//!   resort* ([`super::Params::loop_target_last_resort`], on by default) they are shrunk after
+//!   all: when nothing is in progress, no out-most red vertex exists and every red* triangle's
+//!   target is a loop vertex, the loop would otherwise stop with nothing to do (CROSS); such a
+//!   shrink continues while its triangle stays red*.
+//! - For the same reason a pull avoids a loop-vertex target (ours): among the green
+//!   neighbours of an out-most red vertex, loop vertices are left out while another green
+//!   neighbour is available, and a running pull whose target becomes a loop vertex ends (is
+//!   revoked, then re-targeted) if the subject has such a neighbour. At a loop vertex the fan of
+//!   the target intersects the subject's fan; the triangle the subject has to cross contains
+//!   the target, which m-CCH does not hold `eps_RG` away from its own triangles, so the VT-type
+//!   finesse (Sec. 7, Fig. 11a) cannot be completed by shortening the subject edge. Exploded
+//!   handkerchief seed 13 stalled on exactly this: one red vertex pulled toward the two loop
+//!   vertices of an LL path, saturating three times (world edge 8x its rest length).
 //! - Sec. 6.1 (no TIT-passable fan): a candidate whose every proposal fails the test yields its
 //!   turn (lines 4 and 8). After both loops, such candidates whose subjects and fans are still
 //!   untouched get a fallback operation ([`super::fallback`]), so a regular operation always has
