@@ -250,8 +250,74 @@ fn body_file_and_dir_and_pins() {
     assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
     let r = json(&d.path().join("w.json"));
     assert_eq!(r["output_intersection_free"], false);
+    // The user is told why: the input already penetrates the body.
+    assert!(r["input_body_intersecting_pairs"].as_u64().unwrap() > 0);
+    assert!(
+        stdout(&o).contains("already intersects the body"),
+        "{}",
+        stdout(&o)
+    );
     let c = untangle(&["check", "w.obj", "--body", "wall.obj"], d.path());
     assert_eq!(c.status.code(), Some(1), "the oracle agrees");
+    // The same wall placed away from the sheet with `--body-scale`/`--body-offset` (shared
+    // with `simulate`): nothing intersects, exit 0; the oracle, given the wall moved the same
+    // way, agrees.
+    let o = untangle(
+        &[
+            "fix",
+            "sheet.obj",
+            "-o",
+            "p.obj",
+            "--method",
+            "cha-ko",
+            "--body",
+            "wall.obj",
+            "--body-scale",
+            "2",
+            "--body-offset",
+            "-0.4,0,-1",
+            "--max-steps",
+            "3",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let moved: String = std::fs::read_to_string(d.path().join("wall.obj"))
+        .unwrap()
+        .lines()
+        .map(|l| match l.strip_prefix("v ") {
+            Some(v) => {
+                let c: Vec<f64> = v.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                format!(
+                    "v {} {} {}\n",
+                    2.0 * c[0] - 0.4,
+                    2.0 * c[1],
+                    2.0 * c[2] - 1.0
+                )
+            }
+            None => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(d.path().join("wall_moved.obj"), moved).unwrap();
+    let c = untangle(&["check", "p.obj", "--body", "wall_moved.obj"], d.path());
+    assert_eq!(c.status.code(), Some(0), "the oracle agrees");
+    let o = untangle(
+        &[
+            "fix",
+            "sheet.obj",
+            "-o",
+            "q.obj",
+            "--method",
+            "cha-ko",
+            "--body",
+            "wall.obj",
+            "--body-scale",
+            "0",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!d.path().join("q.obj").exists());
     // A body directory of two frames far below a clean sheet: clean, exit 0.
     std::fs::create_dir(d.path().join("body")).unwrap();
     std::fs::write(d.path().join("body/f0.obj"), quad(-1.0, 2.0, 0.0)).unwrap();

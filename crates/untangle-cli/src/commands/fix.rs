@@ -54,6 +54,9 @@ pub struct Args {
     /// linearly, the last one then held.
     #[arg(long)]
     pub body: Option<PathBuf>,
+    /// How the body is placed: `--body-scale`, `--body-offset`, `--body-z-up`.
+    #[command(flatten)]
+    pub placement: Placement,
     /// Steps per body frame (with `--body DIR`).
     #[arg(long, default_value_t = 1)]
     pub body_frame_steps: usize,
@@ -143,6 +146,8 @@ pub struct FixRun {
     pub final_pos: Vec<Vec3>,
     /// See `final_am`.
     pub final_analysis: Analysis,
+    /// Cloth–body intersecting triangle pairs at the start (these cannot be resolved).
+    pub input_body_pairs: usize,
     /// The analysis at the start (garment and body at their first positions).
     pub initial_analysis: Analysis,
     /// The positions analysed at the start.
@@ -235,6 +240,18 @@ pub fn untangle(
             &scene.colored_obj(&initial_analysis, "untangle fix: input"),
         )?;
     }
+    let body_pairs = |pos: &[Vec3], a: &Analysis| -> usize {
+        Report::new(&scene.am, pos, a)
+            .pairs_by_objects
+            .iter()
+            .filter(|g| g.relation == "cloth-obstacle")
+            .map(|g| g.pairs)
+            .sum()
+    };
+    let input_body_pairs = body_pairs(&initial_pos, &initial_analysis);
+    if input_body_pairs > 0 {
+        ctx.say(format!("note: {}", body_note(input_body_pairs)));
+    }
     let initial_red = initial_analysis.coloring.num_red_vertices() as u64;
     let pb = ctx.progress(initial_red.max(1), "untangling");
     pb.set_style(
@@ -301,6 +318,7 @@ pub fn untangle(
         "outcome": summary.outcome,
         "output_intersection_free": final_analysis.is_clean(),
         "output_intersecting_pairs": final_analysis.segments.len(),
+        "input_body_intersecting_pairs": input_body_pairs,
         "summary": summary,
         "steps": history.iter().map(step_json).collect::<Vec<_>>(),
         "final_analysis": final_json,
@@ -316,8 +334,19 @@ pub fn untangle(
         final_analysis,
         initial_analysis,
         initial_pos,
+        input_body_pairs,
         report,
     })
+}
+
+/// Why a run whose input already penetrates the body cannot end clean, and what to do.
+fn body_note(pairs: usize) -> String {
+    format!(
+        "the input cloth already intersects the body ({pairs} triangle pairs): collision handling \
+         keeps the cloth on the side of the body it starts on, so these stay; place the body \
+         with --body-offset/--body-scale/--body-z-up, or push the garment out of it first with \
+         `untangle layers`"
+    )
 }
 
 fn write_frame(dir: &Path, k: usize, text: &str) -> Result<()> {
@@ -407,7 +436,7 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
     let Method::ChaKo = args.method;
     let garment = read_garment(&args.files)?;
     let body = match &args.body {
-        Some(p) => Some(load_body(p, &Placement::IDENTITY)?),
+        Some(p) => Some(load_body(p, &args.placement)?),
         None => None,
     };
     let mut pinned = Vec::new();
@@ -465,14 +494,17 @@ pub fn text_summary(fix: &FixRun) -> String {
     let s = &fix.summary;
     let mut t = String::new();
     let outcome = match s.outcome {
-        Outcome::Resolved => "resolved",
+        Outcome::Resolved if fix.is_clean() => "resolved",
+        Outcome::Resolved => "cloth tanglements resolved",
         Outcome::StepLimit => "step limit reached",
         Outcome::Stuck => "stuck",
     };
     let _ = writeln!(
         t,
-        "cha-ko: {outcome} after {} steps: {} -> {} intersecting triangle pairs, {} -> {} red vertices",
-        s.steps, s.initial_pairs, s.final_pairs, s.initial_red_vertices, s.final_red_vertices
+        "cha-ko: {outcome} after {} step{}: {} -> {} intersecting triangle pairs, {} -> {} red vertices",
+        s.steps,
+        if s.steps == 1 { "" } else { "s" },
+        s.initial_pairs, s.final_pairs, s.initial_red_vertices, s.final_red_vertices
     );
     if fix.is_clean() {
         let _ = writeln!(t, "output: free of intersections");
@@ -495,6 +527,13 @@ pub fn text_summary(fix: &FixRun) -> String {
             "  left: {} (locations in the JSON report)",
             kinds.join(", ")
         );
+        if fix.input_body_pairs > 0 {
+            let _ = writeln!(
+                t,
+                "  the input already intersected the body in {} triangle pairs",
+                fix.input_body_pairs
+            );
+        }
     }
     let ops: (usize, usize, usize) = fix.history.iter().fold((0, 0, 0), |a, h| {
         (

@@ -29,15 +29,9 @@ pub struct Args {
     /// track_frames`), which needs consecutive frames to be close.
     #[arg(long)]
     pub body: Option<PathBuf>,
-    /// Scale applied to the body (e.g. 0.1 for meshes in decimetres), before the offset.
-    #[arg(long, default_value_t = 1.0)]
-    pub body_scale: f64,
-    /// Offset added to the body after scaling: `X,Y,Z` in metres.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
-    pub body_offset: Option<Vec3>,
-    /// Rotate the body so that its +Z axis points up (+Y), for Z-up meshes.
-    #[arg(long)]
-    pub body_z_up: bool,
+    /// How the body is placed: `--body-scale`, `--body-offset`, `--body-z-up`.
+    #[command(flatten)]
+    pub placement: Placement,
     /// Pinned vertices (repeatable): `corners`, `top`, `box:XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX`, or
     /// 1-based vertex numbers `I,J,K` as in the OBJ file.
     #[arg(long, allow_hyphen_values = true)]
@@ -162,23 +156,19 @@ pub struct Body {
     pub tracked: bool,
 }
 
-/// How a body is placed: `--body-scale`, `--body-offset`, `--body-z-up`.
+/// How a body is placed (shared by `simulate` and `fix`): scaled, then turned Z-up to Y-up,
+/// then offset.
+#[derive(clap::Args, Debug, Clone)]
 pub struct Placement {
-    /// Scale, applied first.
+    /// Scale applied to the body (e.g. 0.1 for meshes in decimetres), before the offset.
+    #[arg(long = "body-scale", default_value_t = 1.0)]
     pub scale: f64,
-    /// Offset added after scaling.
+    /// Offset added to the body after scaling: `X,Y,Z` in metres.
+    #[arg(long = "body-offset", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub offset: Option<Vec3>,
-    /// Turn +Z up into +Y up.
+    /// Rotate the body so that its +Z axis points up (+Y), for Z-up meshes.
+    #[arg(long = "body-z-up")]
     pub z_up: bool,
-}
-
-impl Placement {
-    /// The identity placement.
-    pub const IDENTITY: Placement = Placement {
-        scale: 1.0,
-        offset: None,
-        z_up: false,
-    };
 }
 
 fn place(p: &Vec3, pl: &Placement) -> Vec3 {
@@ -294,14 +284,7 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         sim.set_pinned(v, true)?;
     }
     let body = match &args.body {
-        Some(p) => Some(load_body(
-            p,
-            &Placement {
-                scale: args.body_scale,
-                offset: args.body_offset,
-                z_up: args.body_z_up,
-            },
-        )?),
+        Some(p) => Some(load_body(p, &args.placement)?),
         None => None,
     };
     if let Some(b) = &body {
