@@ -1217,6 +1217,17 @@ fn pulls_avoid_loop_vertex_targets_while_another_green_neighbour_exists() {
     // Every green neighbour a loop vertex: the paper's choice stands.
     let (t, r) = first(&ranked);
     assert_eq!((t, r.pull_loop_targets_skipped), (ranked[0], 0));
+    // Rule off: the paper's choice.
+    let mut off = ChaKo::new(
+        &g,
+        Params {
+            avoid_loop_pull_targets: false,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    off.update_uv_with_loops(&col, &[ranked[0]], None).unwrap();
+    assert_eq!(off.operations().next().unwrap().target, ranked[0]);
 
     // A running pull whose target becomes a loop vertex ends and is revoked; once x is back,
     // it is pulled toward the next neighbour.

@@ -45,6 +45,9 @@ pub struct Params {
     /// [`super::schedule`]): nothing in progress, no out-most red vertex, every red* triangle's
     /// target a loop vertex.
     pub loop_target_last_resort: bool,
+    /// Pulls avoid loop-vertex targets while another green neighbour exists (ours, see
+    /// [`super::schedule`]).
+    pub avoid_loop_pull_targets: bool,
     /// Which edge-edge pairs with a *mixed* edge (one red, one green end) m-CCH lets cross
     /// (experiment, ours; see [`MixedEdges`]). Default: the paper's (such an edge is red).
     pub mixed_edges: MixedEdges,
@@ -64,6 +67,7 @@ impl Default for Params {
             fallback: true,
             persistent_green: false,
             loop_target_last_resort: true,
+            avoid_loop_pull_targets: true,
             mixed_edges: MixedEdges::Red,
         }
     }

@@ -266,7 +266,8 @@ impl ChaKo {
                 // can be avoided); otherwise it ends below.
                 let target = state.ops[&o].target;
                 if !col.red_vertex[target as usize]
-                    && !avoidable_loop_target(topo, col, loop_vertices, x, target)
+                    && !(params.avoid_loop_pull_targets
+                        && avoidable_loop_target(topo, col, loop_vertices, x, target))
                 {
                     touched[o as usize] = true;
                     if state.advance(o) {
@@ -299,7 +300,7 @@ impl ChaKo {
                 .copied()
                 .filter(|w| loop_vertices.binary_search(w).is_err())
                 .collect();
-            let candidates = if off_loop.is_empty() {
+            let candidates = if off_loop.is_empty() || !params.avoid_loop_pull_targets {
                 candidates
             } else {
                 if off_loop.len() < candidates.len() {
@@ -376,7 +377,12 @@ impl ChaKo {
                 continue;
             }
             let op = &state.ops[&id];
-            let (warranted, finished) = warranted(mesh, op, col, loop_vertices);
+            let avoid: &[u32] = if params.avoid_loop_pull_targets {
+                loop_vertices
+            } else {
+                &[]
+            };
+            let (warranted, finished) = warranted(mesh, op, col, avoid);
             let warranted = warranted
                 && !(op.kind == OpKind::Shrink
                     && loop_vertices.binary_search(&op.target).is_ok()
