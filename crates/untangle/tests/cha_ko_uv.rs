@@ -1202,8 +1202,12 @@ fn pulls_avoid_loop_vertex_targets_while_another_green_neighbour_exists() {
     let x = gid(n, 2, 2);
     let ranked = ranked_neighbours(&g, x);
     let col = coloring(&g, &[x], &[], &[]);
+    let on = Params {
+        avoid_loop_pull_targets: true,
+        ..Params::default()
+    };
     let first = |loops: &[u32]| {
-        let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+        let mut ck = ChaKo::new(&g, on.clone()).unwrap();
         let r = ck.update_uv_with_loops(&col, loops, None).unwrap();
         assert_eq!(r.pulls_started, 1);
         let t = ck.operations().next().unwrap().target;
@@ -1217,21 +1221,14 @@ fn pulls_avoid_loop_vertex_targets_while_another_green_neighbour_exists() {
     // Every green neighbour a loop vertex: the paper's choice stands.
     let (t, r) = first(&ranked);
     assert_eq!((t, r.pull_loop_targets_skipped), (ranked[0], 0));
-    // Rule off: the paper's choice.
-    let mut off = ChaKo::new(
-        &g,
-        Params {
-            avoid_loop_pull_targets: false,
-            ..Params::default()
-        },
-    )
-    .unwrap();
+    // Rule off (the default): the paper's choice.
+    let mut off = ChaKo::new(&g, Params::default()).unwrap();
     off.update_uv_with_loops(&col, &[ranked[0]], None).unwrap();
     assert_eq!(off.operations().next().unwrap().target, ranked[0]);
 
     // A running pull whose target becomes a loop vertex ends and is revoked; once x is back,
     // it is pulled toward the next neighbour.
-    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    let mut ck = ChaKo::new(&g, on.clone()).unwrap();
     for _ in 0..3 {
         ck.update_uv_with_loops(&col, &[], None).unwrap();
     }

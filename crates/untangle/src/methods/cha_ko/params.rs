@@ -46,7 +46,8 @@ pub struct Params {
     /// target a loop vertex.
     pub loop_target_last_resort: bool,
     /// Pulls avoid loop-vertex targets while another green neighbour exists (ours, see
-    /// [`super::schedule`]).
+    /// [`super::schedule`]). Off by default: it removes one stall mode but re-targets running
+    /// pulls whenever loop vertices move, and over the benchmarks it did not help overall.
     pub avoid_loop_pull_targets: bool,
     /// Which edge-edge pairs with a *mixed* edge (one red, one green end) m-CCH lets cross
     /// (experiment, ours; see [`MixedEdges`]). Default: the paper's (such an edge is red).
@@ -67,7 +68,7 @@ impl Default for Params {
             fallback: true,
             persistent_green: false,
             loop_target_last_resort: true,
-            avoid_loop_pull_targets: true,
+            avoid_loop_pull_targets: false,
             mixed_edges: MixedEdges::Red,
         }
     }

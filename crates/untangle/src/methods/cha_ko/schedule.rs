@@ -48,7 +48,8 @@
 //!   all: when nothing is in progress, no out-most red vertex exists and every red* triangle's
 //!   target is a loop vertex, the loop would otherwise stop with nothing to do (CROSS); such a
 //!   shrink continues while its triangle stays red*.
-//! - For the same reason a pull avoids a loop-vertex target (ours): among the green
+//! - Optionally ([`super::Params::avoid_loop_pull_targets`], off by default) and for the same
+//!   reason a pull avoids a loop-vertex target (ours): among the green
 //!   neighbours of an out-most red vertex, loop vertices are left out while another green
 //!   neighbour is available, and a running pull whose target becomes a loop vertex ends (is
 //!   revoked, then re-targeted) if the subject has such a neighbour. At a loop vertex the fan of
