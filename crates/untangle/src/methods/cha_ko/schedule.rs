@@ -266,10 +266,9 @@ impl ChaKo {
                 // Continue the finesse while its target is green (and not a loop vertex that
                 // can be avoided); otherwise it ends below.
                 let target = state.ops[&o].target;
-                if !col.red_vertex[target as usize]
-                    && !(params.avoid_loop_pull_targets
-                        && avoidable_loop_target(topo, col, loop_vertices, x, target))
-                {
+                let avoid = params.avoid_loop_pull_targets
+                    && avoidable_loop_target(topo, col, loop_vertices, x, target);
+                if !col.red_vertex[target as usize] && !avoid {
                     touched[o as usize] = true;
                     if state.advance(o) {
                         rep.pulls_continued += 1;
