@@ -120,9 +120,15 @@ fn main() {
     }
 }
 
+/// `SIM_BENCH_MULTIGRID=1` measures the multigrid CG preconditioner instead of the default.
 fn params() -> SimParams {
     SimParams {
         gravity: Vec3::new(0.0, 0.0, -9.81),
+        preconditioner: if std::env::var("SIM_BENCH_MULTIGRID").is_ok() {
+            untangle::sim::CgPreconditioner::Multigrid
+        } else {
+            untangle::sim::CgPreconditioner::TwoLevel
+        },
         ..SimParams::default()
     }
 }

@@ -18,6 +18,7 @@
 //!
 //! Results are bit-identical for any number of threads.
 
+pub mod amg;
 pub mod collision;
 pub mod contact;
 pub mod forces;
@@ -32,4 +33,4 @@ pub mod step;
 pub use obstacle::Obstacle;
 pub use policy::{Contact, ContactPolicy, RedGreen, UniformThickness};
 pub use report::StepReport;
-pub use step::{SimParams, Simulator};
+pub use step::{CgPreconditioner, SimParams, Simulator};

@@ -16,6 +16,7 @@
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
+use super::amg::AmgPreconditioner;
 use super::sparse::{dot, BsrMatrix, BsrPattern, CHUNK};
 use crate::geom::Vec3;
 
@@ -31,8 +32,9 @@ pub enum Filter {
 }
 
 impl Filter {
+    /// Projects `v` onto the free directions.
     #[inline]
-    fn apply(&self, v: Vec3) -> Vec3 {
+    pub fn apply(&self, v: Vec3) -> Vec3 {
         match self {
             Filter::Free => v,
             Filter::Fixed => Vec3::zeros(),
@@ -178,6 +180,15 @@ impl<'a> CoarseLevel<'a> {
     }
 }
 
+/// The preconditioner of a solve.
+#[derive(Clone, Copy)]
+pub enum Preconditioner<'a> {
+    /// Filtered 3x3 block-Jacobi, optionally plus the additive coarse-grid correction.
+    BlockJacobi(Option<&'a CoarseLevel<'a>>),
+    /// One smoothed-aggregation multigrid V-cycle ([`crate::sim::amg`]).
+    Amg(&'a AmgPreconditioner<'a>),
+}
+
 /// Stopping rule of the solve.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PcgSettings {
@@ -215,8 +226,12 @@ pub fn solve(
     z: &[Vec3],
     x: &mut [Vec3],
     settings: PcgSettings,
-    coarse: Option<&CoarseLevel>,
+    preconditioner: Preconditioner,
 ) -> PcgResult {
+    let (coarse, amg) = match preconditioner {
+        Preconditioner::BlockJacobi(c) => (c, None),
+        Preconditioner::Amg(m) => (None, Some(m)),
+    };
     let n = b.len();
     let pinv: Vec<Matrix3<f64>> = (0..n)
         .into_par_iter()
@@ -234,6 +249,10 @@ pub fn solve(
         })
         .collect();
     let precond = |r: &[Vec3], out: &mut [Vec3]| {
+        if let Some(m) = amg {
+            m.apply(r, out);
+            return;
+        }
         out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
             for (k, oi) in o.iter_mut().enumerate() {
                 let i = c * CHUNK + k;
@@ -295,27 +314,45 @@ pub fn solve(
         }
         let alpha = delta_new / cq;
         // x += alpha c, r -= alpha q, s = filtered block-Jacobi of r, and r . s.
-        let mut rs_dot: f64 = x
-            .par_chunks_mut(CHUNK)
-            .zip(r.par_chunks_mut(CHUNK))
-            .zip(s.par_chunks_mut(CHUNK))
-            .enumerate()
-            .map(|(ch, ((xs, rs), ss))| {
-                let mut acc = 0.0;
-                for k in 0..xs.len() {
-                    let i = ch * CHUNK + k;
-                    xs[k] += alpha * c[i];
-                    rs[k] -= alpha * q[i];
-                    ss[k] = filter[i].apply(pinv[i] * rs[k]);
-                    acc += rs[k].dot(&ss[k]);
-                }
-                acc
-            })
-            .collect::<Vec<f64>>()
-            .iter()
-            .sum();
+        let mut rs_dot: f64 = if let Some(m) = amg {
+            x.par_chunks_mut(CHUNK)
+                .zip(r.par_chunks_mut(CHUNK))
+                .enumerate()
+                .for_each(|(ch, (xs, rs))| {
+                    for k in 0..xs.len() {
+                        let i = ch * CHUNK + k;
+                        xs[k] += alpha * c[i];
+                        rs[k] -= alpha * q[i];
+                    }
+                });
+            m.apply(&r, &mut s)
+        } else {
+            x.par_chunks_mut(CHUNK)
+                .zip(r.par_chunks_mut(CHUNK))
+                .zip(s.par_chunks_mut(CHUNK))
+                .enumerate()
+                .map(|(ch, ((xs, rs), ss))| {
+                    let mut acc = 0.0;
+                    for k in 0..xs.len() {
+                        let i = ch * CHUNK + k;
+                        xs[k] += alpha * c[i];
+                        rs[k] -= alpha * q[i];
+                        ss[k] = filter[i].apply(pinv[i] * rs[k]);
+                        acc += rs[k].dot(&ss[k]);
+                    }
+                    acc
+                })
+                .collect::<Vec<f64>>()
+                .iter()
+                .sum()
+        };
         if let Some(cl) = coarse {
             rs_dot += cl.add_correction_dot(&r, filter, &mut s);
+        }
+        if rs_dot.is_nan() || rs_dot < 0.0 {
+            // Not positive definite (cannot happen with a convergent smoother): stop here.
+            delta_new = f64::INFINITY;
+            break;
         }
         let delta_old = delta_new;
         delta_new = rs_dot;
@@ -483,7 +520,7 @@ mod tests {
                     absolute: 0.0,
                     max_iterations: 10_000,
                 },
-                coarse.as_ref(),
+                Preconditioner::BlockJacobi(coarse.as_ref()),
             );
             assert!(res.converged, "{res:?}");
             // Oracle: dense solve of the reduced system S A S y = S (b - A z) on the free
@@ -534,7 +571,7 @@ mod tests {
                 absolute: 0.0,
                 max_iterations: 3,
             },
-            None,
+            Preconditioner::BlockJacobi(None),
         );
         assert_eq!(res.iterations, 3);
         assert!(!res.converged);
@@ -558,7 +595,19 @@ mod tests {
                 absolute: 0.0,
                 max_iterations: 10_000,
             };
-            assert!(solve(&p, &a, &b, &filter, &z, &mut exact, settings, None).converged);
+            assert!(
+                solve(
+                    &p,
+                    &a,
+                    &b,
+                    &filter,
+                    &z,
+                    &mut exact,
+                    settings,
+                    Preconditioner::BlockJacobi(None)
+                )
+                .converged
+            );
             let mut rng = ChaCha8Rng::seed_from_u64(seed + 50);
             // An approximation whose error is a filtered translation plus noise.
             let shift = Vec3::new(0.3, -0.7, 0.2);

@@ -12,6 +12,7 @@ use std::time::Instant;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
+use super::amg::{Amg, AmgSettings};
 use super::collision::{self, broad::BroadPhase, CollisionSettings, Scene};
 use super::collision::{Pair, PairKind};
 use super::contact::{self, ContactFinder};
@@ -35,6 +36,13 @@ const COARSE_MIN_VERTICES: usize = 200;
 const COARSE_AGGREGATES: usize = 64;
 /// Smallest aggregate.
 const COARSE_MIN_SIZE: usize = 16;
+/// The multigrid hierarchy is rebuilt when a solve needs more than this many times the
+/// iterations of the first solve after the last build (plus [`AMG_REBUILD_SLACK`]).
+const AMG_REBUILD_FACTOR: usize = 2;
+/// Iterations added to the rebuild threshold (small counts fluctuate).
+const AMG_REBUILD_SLACK: usize = 6;
+/// Steps after which the hierarchy is rebuilt anyway.
+const AMG_MAX_AGE: u64 = 50;
 /// Largest friction damping per step as a multiple of the vertex mass (sticking).
 const FRICTION_CAP: f64 = 100.0;
 
@@ -83,6 +91,20 @@ pub struct SimParams {
     /// trajectories so that some of its validated cases stopped resolving, so the loop uses
     /// `true` ([`crate::methods::cha_ko::ResolveParams`]).
     pub contacts_within_reach: bool,
+    /// Preconditioner of CG for meshes of at least 200 vertices (smaller ones use block-Jacobi).
+    pub preconditioner: CgPreconditioner,
+}
+
+/// Which preconditioner CG uses (see [`crate::sim::pcg`] and [`crate::sim::amg`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CgPreconditioner {
+    /// Smoothed-aggregation multigrid V-cycle, its hierarchy reused across steps while it
+    /// works ([`crate::sim::amg`]). Fewer iterations, but on the benchmarks of BENCHMARKS.md
+    /// ("Simulation") more time per step than [`CgPreconditioner::TwoLevel`], so not the
+    /// default.
+    Multigrid,
+    /// Block-Jacobi plus an additive 64-aggregate coarse grid; the default.
+    TwoLevel,
 }
 
 impl Default for SimParams {
@@ -105,6 +127,7 @@ impl Default for SimParams {
             max_impulse_iterations: 12,
             max_zone_iterations: 100,
             contacts_within_reach: false,
+            preconditioner: CgPreconditioner::TwoLevel,
         }
     }
 }
@@ -182,8 +205,14 @@ pub struct Simulator {
     contact_impulse: Vec<f64>,
     /// Sum of the masses.
     total_mass: f64,
-    /// Coarse level of the CG preconditioner (`None` for small meshes).
+    /// Coarse level of the two-level CG preconditioner (`None` for small meshes).
     aggregation: Option<Aggregation>,
+    /// Multigrid hierarchy (built on first use, for meshes with an aggregation).
+    amg: Amg,
+    /// Iterations of the first solve after the last build, and the step of that build.
+    amg_built: Option<(usize, u64)>,
+    /// Iterations of the last multigrid solve.
+    amg_last: usize,
     /// Velocity change of the previous step: the initial guess of CG.
     dv_prev: Vec<Vec3>,
     steps: u64,
@@ -285,6 +314,9 @@ impl Simulator {
                     n.div_ceil(COARSE_AGGREGATES).max(COARSE_MIN_SIZE),
                 )
             }),
+            amg: Amg::new(AmgSettings::default()),
+            amg_built: None,
+            amg_last: 0,
             resting: Vec::new(),
             contact_impulse: vec![0.0; n],
             dv_prev: vec![Vec3::zeros(); n],
@@ -680,22 +712,81 @@ impl Simulator {
                     rhs[i] -= t * ((self.v[i] - c.obstacle_velocity) * g);
                 }
             }
-            if round == 0 {
+            let multigrid =
+                p.preconditioner == CgPreconditioner::Multigrid && self.aggregation.is_some();
+            if round == 0 && multigrid {
+                let stale = match self.amg_built {
+                    None => true,
+                    Some((first, at)) => {
+                        self.amg_last > AMG_REBUILD_FACTOR * first + AMG_REBUILD_SLACK
+                            || self.steps >= at + AMG_MAX_AGE
+                    }
+                };
+                if stale || !self.amg.is_built_for(&self.pattern) {
+                    self.amg_built = None;
+                    if !self.amg.build(&self.pattern, &a, &fl, &self.x) {
+                        self.amg = Amg::new(AmgSettings::default());
+                    }
+                }
+            } else if round == 0 {
                 coarse = self
                     .aggregation
                     .as_ref()
                     .and_then(|g| CoarseLevel::new(g, &self.pattern, &a, &fl));
             }
-            let r = pcg::solve(
-                &self.pattern,
-                &a,
-                &rhs,
-                &fl,
-                &zz,
-                &mut dv,
-                settings,
-                coarse.as_ref(),
-            );
+            let mg = if multigrid {
+                self.amg.preconditioner(&self.pattern, &a, &fl)
+            } else {
+                None
+            };
+            let mut r = match &mg {
+                Some(m) => pcg::solve(
+                    &self.pattern,
+                    &a,
+                    &rhs,
+                    &fl,
+                    &zz,
+                    &mut dv,
+                    settings,
+                    pcg::Preconditioner::Amg(m),
+                ),
+                None => pcg::solve(
+                    &self.pattern,
+                    &a,
+                    &rhs,
+                    &fl,
+                    &zz,
+                    &mut dv,
+                    settings,
+                    pcg::Preconditioner::BlockJacobi(coarse.as_ref()),
+                ),
+            };
+            if mg.is_some() {
+                if round == 0 {
+                    self.amg_last = r.iterations;
+                    if self.amg_built.is_none() {
+                        self.amg_built = Some((r.iterations, self.steps));
+                    }
+                }
+                if !r.relative_residual.is_finite() {
+                    // The reused hierarchy stopped being positive definite for this matrix:
+                    // finish with block-Jacobi and rebuild next step.
+                    let more = pcg::solve(
+                        &self.pattern,
+                        &a,
+                        &rhs,
+                        &fl,
+                        &zz,
+                        &mut dv,
+                        settings,
+                        pcg::Preconditioner::BlockJacobi(None),
+                    );
+                    r.iterations += more.iterations;
+                    r.relative_residual = more.relative_residual;
+                    r.converged = more.converged;
+                    self.amg_built = None;
+                }
+            }
             // Momentum: CG leaves its error mostly in the rigid translations (see
             // `pcg::correct_translations`).
             pcg::correct_translations(&self.pattern, &a, &rhs, &fl, &mut dv);

@@ -46,15 +46,12 @@ pub fn ccd(scene: &Scene, v: &[Vec3], p: Pair, eps: f64) -> Option<f64> {
     ccd_with_start_distance(&x0, &x1, p.is_vertex_triangle(), eps, d0)
 }
 
-fn ccd_with_start_distance(
-    x0: &[Vec3; 4],
-    x1: &[Vec3; 4],
-    vt: bool,
-    eps: f64,
-    d0: f64,
-) -> Option<f64> {
+/// The largest displacement of a node of one primitive relative to a node of the other over
+/// the step: a Lipschitz bound of how much the pair's distance can shrink.
+#[inline]
+fn relative_reach(x0: &[Vec3; 4], x1: &[Vec3; 4], vt: bool) -> f64 {
     let d: [Vec3; 4] = [0, 1, 2, 3].map(|k| x1[k] - x0[k]);
-    let reach = if vt {
+    if vt {
         (1..4).map(|k| (d[0] - d[k]).norm()).fold(0.0, f64::max)
     } else {
         let mut m = 0.0f64;
@@ -64,7 +61,17 @@ fn ccd_with_start_distance(
             }
         }
         m
-    };
+    }
+}
+
+fn ccd_with_start_distance(
+    x0: &[Vec3; 4],
+    x1: &[Vec3; 4],
+    vt: bool,
+    eps: f64,
+    d0: f64,
+) -> Option<f64> {
+    let reach = relative_reach(x0, x1, vt);
     let scale = x0.iter().chain(x1).fold(0.0f64, |m, p| m.max(p.amax()));
     let slack = eps * 1e-9 + 1e-12 * scale;
     // Conservative advancement (Mirtich 1996): no contact can happen before
@@ -118,6 +125,12 @@ pub fn detect_pair(
     // farther apart than their own CCD thickness over the whole step, which the swept boxes of
     // the two primitives already show.
     if super::swept_apart(&x0, &x1, vt, eps_c) {
+        return None;
+    }
+    // The distance shrinks by at most the largest relative displacement of the pair's nodes
+    // over the step (see `ccd_with_start_distance`): a start gap beyond it and eps_c settles
+    // the pair without a closest-point computation.
+    if super::sphere_apart(&x0, vt, eps_c + relative_reach(&x0, &x1, vt)) {
         return None;
     }
     let d0 = closest(&x0, vt).distance;

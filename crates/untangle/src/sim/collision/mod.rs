@@ -249,6 +249,35 @@ pub fn swept_apart(x0: &[Vec3; 4], x1: &[Vec3; 4], vt: bool, d: f64) -> bool {
     false
 }
 
+/// A lower bound of the distance between the two primitives of a pair (nodes `[p, a, b, c]`
+/// when `vt`, else two edges) at positions `x`, from bounding spheres: the vertex's distance
+/// to the triangle's centroid minus the triangle's circumradius about it, or the distance
+/// between the edges' midpoints minus their half-lengths. Unlike axis-aligned boxes it is tight
+/// for neighbouring primitives on an oblique surface, the bulk of the swept-box candidates.
+#[inline]
+pub fn sphere_gap(x: &[Vec3; 4], vt: bool) -> f64 {
+    if vt {
+        let c = (x[1] + x[2] + x[3]) / 3.0;
+        let r = (x[1] - c)
+            .norm_squared()
+            .max((x[2] - c).norm_squared())
+            .max((x[3] - c).norm_squared())
+            .sqrt();
+        (x[0] - c).norm() - r
+    } else {
+        let (m1, m2) = ((x[0] + x[1]) * 0.5, (x[2] + x[3]) * 0.5);
+        (m1 - m2).norm() - 0.5 * ((x[1] - x[0]).norm() + (x[3] - x[2]).norm())
+    }
+}
+
+/// Whether [`sphere_gap`] shows the pair farther apart than `d` (with a relative slack for
+/// rounding, so `false` only means "maybe closer").
+#[inline]
+pub fn sphere_apart(x: &[Vec3; 4], vt: bool, d: f64) -> bool {
+    let scale = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
+    sphere_gap(x, vt) > d * (1.0 + 1e-9) + 1e-9 * scale
+}
+
 /// Closest-point geometry of a pair at one instant.
 #[derive(Clone, Copy, Debug)]
 pub struct Closest {
@@ -664,6 +693,37 @@ mod tests {
                 assert_eq!(a, b, "seed {seed} round {round}");
             }
         }
+    }
+
+    /// Oracle for [`sphere_gap`]: never above the closest-point distance, and close to it for
+    /// far pairs (not vacuous).
+    #[test]
+    fn sphere_gap_is_a_lower_bound_of_the_distance() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut tight = 0;
+        for case in 0..20000 {
+            let vt = case % 2 == 0;
+            let spread = rng.random_range(0.001..0.3);
+            let offset = rand_vec(&mut rng, 1.0);
+            let x: [Vec3; 4] = std::array::from_fn(|k| {
+                let o = if (vt && k == 0) || (!vt && k < 2) {
+                    offset
+                } else {
+                    Vec3::zeros()
+                };
+                o + rand_vec(&mut rng, spread)
+            });
+            let d = closest(&x, vt).distance;
+            let g = sphere_gap(&x, vt);
+            assert!(g <= d + 1e-12, "case {case}: gap {g} > distance {d}");
+            if g > 0.5 * d {
+                tight += 1;
+            }
+            if sphere_apart(&x, vt, 0.01) {
+                assert!(d > 0.01, "case {case}");
+            }
+        }
+        assert!(tight > 5000, "{tight}");
     }
 
     /// Oracle for [`swept_apart`]: whenever it says apart, the distance sampled along the step

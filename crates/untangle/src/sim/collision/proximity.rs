@@ -59,7 +59,8 @@ pub fn repel(
                         .fold(0.0f64, f64::max)
                 };
                 let reach_max = (speed(0..split) + speed(split..4)) * h;
-                if super::swept_apart(&x, &x, vt, (2.0 * eps).max(eps + 2.0 * reach_max)) {
+                let far = (2.0 * eps).max(eps + 2.0 * reach_max);
+                if super::swept_apart(&x, &x, vt, far) || super::sphere_apart(&x, vt, far) {
                     return None;
                 }
                 let geom = closest(&x, vt);
