@@ -39,7 +39,8 @@ fn main() {
         let mut p = ResolveParams::default();
         p.sim.gravity = Vec3::zeros();
         p.max_steps = max_steps as usize;
-        // Parameter experiments: CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA.
+        // Parameter experiments: CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA,
+        // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT.
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
         if let Some(v) = env("CHAKO_MAX_LEVEL") {
             p.cha_ko.max_level = v as u32;
@@ -49,6 +50,20 @@ fn main() {
         }
         if let Some(v) = env("CHAKO_REVOKE") {
             p.cha_ko.revoke_levels_per_step = v as u32;
+        }
+        if let Some(v) = env("CHAKO_PERSIST") {
+            p.cha_ko.persistent_green = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_MIXED") {
+            use untangle::methods::cha_ko::MixedEdges;
+            p.cha_ko.mixed_edges =
+                [MixedEdges::Red, MixedEdges::Green, MixedEdges::NotWithMixed][v as usize];
+        }
+        if let Some(v) = env("CHAKO_AVOID_LOOP_PULL") {
+            p.cha_ko.avoid_loop_pull_targets = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_LAST_RESORT") {
+            p.cha_ko.loop_target_last_resort = v != 0.0;
         }
         if let Some(v) = env("CHAKO_GAMMA") {
             p.cha_ko.gamma = v;

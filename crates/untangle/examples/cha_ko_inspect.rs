@@ -1,7 +1,7 @@
 //! Diagnostic: runs the Cha & Ko loop on a named scene and, at the listed steps, prints the
 //! red* triangles, their red edges, the crossings they take part in and the operations.
 //!
-//! `cargo run --release -p untangle --example cha_ko_inspect -- cross 20,60,100`
+//! `cargo run --release -p untangle --example cha_ko_inspect -- cross 20,60,100 [seed]`
 use untangle::analysis::{analyze, AnalysisMesh, ObjectKind};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
@@ -15,7 +15,10 @@ fn main() {
         .split(',')
         .map(|s| s.parse().unwrap())
         .collect();
-    let scene = untangle::scenes::by_name(&which, None, 1).unwrap();
+    let seed: u64 = std::env::args()
+        .nth(3)
+        .map_or(1, |s| s.parse().expect("a seed"));
+    let scene = untangle::scenes::by_name(&which, None, seed).unwrap();
     let parts: Vec<_> = scene
         .meshes
         .iter()

@@ -1176,3 +1176,248 @@ fn red_star_triangles_are_not_shrunk_toward_a_loop_vertex() {
         .operations()
         .any(|o| o.kind == OpKind::Shrink && loops.contains(&o.target)));
 }
+
+/// Neighbours of `x` in the order the pull's target choice ranks them (original uv length, then
+/// index): the oracle of the loop-vertex tests below.
+fn ranked_neighbours(g: &Garment, x: u32) -> Vec<u32> {
+    let uv = &g.uv().coords;
+    let copy = |v: u32| g.uv_copies.row(v as usize)[0] as usize;
+    let mut ws: Vec<(f64, u32)> = g
+        .topology
+        .vertex_neighbors
+        .row(x as usize)
+        .iter()
+        .map(|&w| ((uv[copy(w)] - uv[copy(x)]).norm(), w))
+        .collect();
+    ws.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    ws.into_iter().map(|(_, w)| w).collect()
+}
+
+#[test]
+fn pulls_avoid_loop_vertex_targets_while_another_green_neighbour_exists() {
+    // Seed 13 of the exploded handkerchief: a red vertex pulled toward a loop vertex of an LL
+    // path saturated three times (the triangle it had to cross contains the target).
+    let n = 4;
+    let g = grid(n);
+    let x = gid(n, 2, 2);
+    let ranked = ranked_neighbours(&g, x);
+    let col = coloring(&g, &[x], &[], &[]);
+    let on = Params {
+        avoid_loop_pull_targets: true,
+        ..Params::default()
+    };
+    let first = |loops: &[u32]| {
+        let mut ck = ChaKo::new(&g, on.clone()).unwrap();
+        let r = ck.update_uv_with_loops(&col, loops, None).unwrap();
+        assert_eq!(r.pulls_started, 1);
+        let t = ck.operations().next().unwrap().target;
+        (t, r)
+    };
+    assert_eq!(first(&[]).0, ranked[0]);
+    let (t, r) = first(&[ranked[0]]);
+    assert_eq!((t, r.pull_loop_targets_skipped), (ranked[1], 1));
+    let (t, _) = first(&ranked[..3]);
+    assert_eq!(t, ranked[3]);
+    // Every green neighbour a loop vertex: the paper's choice stands.
+    let (t, r) = first(&ranked);
+    assert_eq!((t, r.pull_loop_targets_skipped), (ranked[0], 0));
+    // Rule off (the default): the paper's choice.
+    let mut off = ChaKo::new(&g, Params::default()).unwrap();
+    off.update_uv_with_loops(&col, &[ranked[0]], None).unwrap();
+    assert_eq!(off.operations().next().unwrap().target, ranked[0]);
+
+    // A running pull whose target becomes a loop vertex ends and is revoked; once x is back,
+    // it is pulled toward the next neighbour.
+    let mut ck = ChaKo::new(&g, on.clone()).unwrap();
+    for _ in 0..3 {
+        ck.update_uv_with_loops(&col, &[], None).unwrap();
+    }
+    assert_eq!(ck.operations().next().unwrap().level, 3);
+    let mut levels = Vec::new();
+    for _ in 0..4 {
+        let r = ck.update_uv_with_loops(&col, &[ranked[0]], None).unwrap();
+        levels.push((r.revoked_levels, r.pulls_started));
+    }
+    assert_eq!(levels, vec![(1, 0), (1, 0), (1, 0), (0, 1)]);
+    let op = ck.operations().next().unwrap();
+    assert_eq!((op.target, op.level), (ranked[1], 1));
+    assert!(ck.inverted_uv_triangles().is_empty());
+}
+
+#[test]
+fn a_red_star_shrink_toward_a_loop_vertex_is_a_last_resort() {
+    let n = 6;
+    let g = grid(n);
+    let topo = &g.topology;
+    // One penetrating edge inside the sheet; its triangles are the red* ones.
+    let (a, b) = (gid(n, 2, 2), gid(n, 3, 2));
+    let e = topo.edge_between(a, b).unwrap();
+    let only_star = coloring(&g, &[], &[(a, b)], &[]);
+    assert_eq!(only_star.red_star.len(), 2);
+    let target = |t: u32| {
+        let tri = g.mesh.triangles[t as usize];
+        *tri.iter().find(|&&v| v != a && v != b).unwrap()
+    };
+    let loops: Vec<u32> = only_star.red_star.iter().map(|&t| target(t)).collect();
+    assert!(topo.edge_triangles[e as usize]
+        .iter()
+        .all(|t| only_star.red_star.contains(t)));
+
+    // Something else to do (an out-most red vertex far away): the loop targets are skipped.
+    let far = gid(n, 5, 5);
+    let busy = coloring(&g, &[far], &[(a, b)], &[]);
+    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    let r = ck.update_uv_with_loops(&busy, &loops, None).unwrap();
+    assert_eq!((r.blocked_loop_target, r.shrinks_started), (2, 0));
+    assert_eq!(r.pulls_started, 1);
+
+    // Nothing else: the first red* triangle (sorted order) is shrunk toward its loop target and
+    // continues while it stays red*; the second is adjacent (Case 2) and waits.
+    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    let r = ck.update_uv_with_loops(&only_star, &loops, None).unwrap();
+    assert_eq!((r.shrinks_started, r.loop_target_last_resort), (1, 1));
+    let op = ck.operations().next().unwrap().clone();
+    assert_eq!(op.triangle, only_star.red_star[0]);
+    assert_eq!(op.target, target(op.triangle));
+    for s in 2..=4 {
+        let r = ck.update_uv_with_loops(&only_star, &loops, None).unwrap();
+        assert_eq!((r.shrinks_continued, r.shrinks_started), (1, 0), "step {s}");
+        assert_eq!(ck.operations().next().unwrap().level, s);
+    }
+    assert!(ck.inverted_uv_triangles().is_empty());
+
+    // Off: the rule of the loop-vertex fix alone.
+    let mut ck = ChaKo::new(
+        &g,
+        Params {
+            loop_target_last_resort: false,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    let r = ck.update_uv_with_loops(&only_star, &loops, None).unwrap();
+    assert_eq!((r.blocked_loop_target, r.shrinks_started), (2, 0));
+}
+
+#[test]
+fn mixed_edge_rules_decide_edge_pairs_from_the_end_colours() {
+    // Oracle: an edge is mixed when exactly one end is red (Sec. 3 makes it red); the rules
+    // change only pairs with a mixed edge, and never let a mixed edge cross under `Green`.
+    use untangle::analysis::{analyze, AnalysisMesh};
+    use untangle::methods::cha_ko::{MixedEdges, PairColour};
+    use untangle::sim::{Contact as ContactRule, ContactPolicy};
+    let g = Garment::new({
+        let scene = untangle::scenes::closed(10);
+        let (am2, pos) = AnalysisMesh::new(&[
+            (&scene.meshes[0], untangle::analysis::ObjectKind::Cloth),
+            (&scene.meshes[1], untangle::analysis::ObjectKind::Cloth),
+        ])
+        .unwrap();
+        am2.merged(&pos, &[&scene.meshes[0], &scene.meshes[1]])
+    })
+    .unwrap();
+    let (am, pos) = AnalysisMesh::single(&g.mesh).unwrap();
+    let a = analyze(&am, &pos).unwrap();
+    let col = &a.coloring;
+    let edges = &g.topology.edges;
+    let mixed =
+        |e: usize| col.red_vertex[edges[e][0] as usize] != col.red_vertex[edges[e][1] as usize];
+    let n_mixed = (0..edges.len()).filter(|&e| mixed(e)).count();
+    assert!(n_mixed > 0);
+    let mut counts = [0usize; 3];
+    for rule in [MixedEdges::Red, MixedEdges::Green, MixedEdges::NotWithMixed] {
+        let ck = ChaKo::new(
+            &g,
+            Params {
+                mixed_edges: rule,
+                ..Params::default()
+            },
+        )
+        .unwrap();
+        let pol = ck.contact_policy(&am, &a);
+        for e in 0..edges.len() {
+            for f in (0..edges.len()).step_by(3) {
+                let (re, rf) = (col.red_edge[e], col.red_edge[f]);
+                let want = match rule {
+                    MixedEdges::Red => (re, rf),
+                    MixedEdges::Green => (re && !mixed(e), rf && !mixed(f)),
+                    MixedEdges::NotWithMixed if mixed(e) && mixed(f) => (false, true),
+                    MixedEdges::NotWithMixed => (re, rf),
+                };
+                let want = match want {
+                    (true, true) => PairColour::RedRed,
+                    (false, false) => PairColour::GreenGreen,
+                    _ => PairColour::RedGreen,
+                };
+                assert_eq!(pol.edge_edge_colour(e as u32, f as u32), want);
+                let c = pol.edge_edge(e as u32, f as u32);
+                if rule == MixedEdges::Green && (mixed(e) || mixed(f)) {
+                    assert_ne!(c, ContactRule::Skip, "a mixed edge may not cross");
+                }
+                if c == ContactRule::Skip {
+                    counts[rule as usize] += 1;
+                }
+            }
+        }
+    }
+    // The paper's rule lets the most pairs cross, `Green` the fewest.
+    assert!(counts[0] > counts[2] && counts[2] > counts[1], "{counts:?}");
+}
+
+#[test]
+fn persistent_green_never_turns_a_green_vertex_red() {
+    // Oracle: the Sec. 3 colouring (`coloring::color`) of the analysis's red vertices restricted
+    // to those red at the previous call.
+    use untangle::analysis::{analyze, coloring::color, AnalysisMesh};
+    let scene = untangle::scenes::closed(10);
+    let (am2, pos) = AnalysisMesh::new(&[
+        (&scene.meshes[0], untangle::analysis::ObjectKind::Cloth),
+        (&scene.meshes[1], untangle::analysis::ObjectKind::Cloth),
+    ])
+    .unwrap();
+    let g = Garment::new(am2.merged(&pos, &[&scene.meshes[0], &scene.meshes[1]])).unwrap();
+    let (am, pos) = AnalysisMesh::single(&g.mesh).unwrap();
+    let a0 = analyze(&am, &pos).unwrap();
+    let red0 = a0.coloring.red_vertex.clone();
+    let (on, off) = (
+        Params {
+            persistent_green: true,
+            ..Params::default()
+        },
+        Params::default(),
+    );
+    let mut ck = ChaKo::new(&g, on).unwrap();
+    let mut first = a0.clone();
+    ck.persist_coloring(&am, &mut first);
+    assert_eq!(
+        first.coloring, a0.coloring,
+        "the first call keeps the analysis"
+    );
+    // Next step: pretend half of the red vertices turned green and some green ones red.
+    let mut a1 = a0.clone();
+    let mut red1 = red0.clone();
+    let mut flipped = 0;
+    for (v, r) in red1.iter_mut().enumerate() {
+        if v % 2 == 0 {
+            *r = !*r;
+            flipped += 1;
+        }
+    }
+    assert!(flipped > 0);
+    a1.coloring = color(&am, red1.clone(), &a1.crossings, &a1.segments);
+    let mut got = a1.clone();
+    ck.persist_coloring(&am, &mut got);
+    let want: Vec<bool> = red1.iter().zip(&red0).map(|(&a, &b)| a && b).collect();
+    assert_eq!(
+        got.coloring,
+        color(&am, want.clone(), &a1.crossings, &a1.segments)
+    );
+    assert!(got.coloring.num_red_vertices() <= a0.coloring.num_red_vertices());
+    // Off: untouched.
+    let mut ck = ChaKo::new(&g, off).unwrap();
+    let mut x = a0.clone();
+    ck.persist_coloring(&am, &mut x);
+    let mut y = a1.clone();
+    ck.persist_coloring(&am, &mut y);
+    assert_eq!(y.coloring, a1.coloring);
+}

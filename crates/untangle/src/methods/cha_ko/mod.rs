@@ -35,7 +35,7 @@ pub mod tit;
 
 pub use fallback::Fallback;
 pub use params::Params;
-pub use policy::{MchPolicy, PairColour};
+pub use policy::{MchPolicy, MixedEdges, PairColour};
 pub use report::{EndReason, FinesseRecord, FinesseStats, Stall, StallReason, UvUpdateReport};
 pub use resolve::{LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver};
 pub use seams::SeamKind;
@@ -64,6 +64,10 @@ pub struct ChaKo {
     /// Loop vertices of the step's intersection paths (sorted): a red* triangle is not shrunk
     /// toward one (see [`schedule`]).
     loop_vertices: Vec<u32>,
+    /// Red vertices of the previous step's colouring (for [`Params::persistent_green`]).
+    prev_red: Option<Vec<bool>>,
+    /// Shrinks toward a loop vertex started as a last resort (see [`schedule`]).
+    last_resort_ops: std::collections::BTreeSet<u32>,
 }
 
 impl ChaKo {
@@ -85,6 +89,8 @@ impl ChaKo {
             moved: vec![0; n],
             tabu: Default::default(),
             loop_vertices: Vec::new(),
+            prev_red: None,
+            last_resort_ops: Default::default(),
             params,
         })
     }
@@ -177,15 +183,29 @@ impl ChaKo {
         positions: &[Vec3],
     ) -> Result<UvUpdateReport> {
         self.check_analysis_mesh(am)?;
-        let mut lv: Vec<u32> = analysis
+        let lv: Vec<u32> = analysis
             .paths
             .iter()
             .flat_map(|p| p.loop_vertices.iter().copied())
             .collect();
+        self.update_uv_with_loops(&analysis.coloring, &lv, Some(positions))
+    }
+
+    /// One update from a colouring and the loop vertices of its intersection paths (Wicke et
+    /// al.'s loop vertices; any order, duplicates allowed), as [`ChaKo::update_uv`] takes them
+    /// from an analysis: pulls avoid loop-vertex targets and red* triangles are not shrunk
+    /// toward one except as a last resort (see [`schedule`]).
+    pub fn update_uv_with_loops(
+        &mut self,
+        coloring: &Coloring,
+        loop_vertices: &[u32],
+        positions: Option<&[Vec3]>,
+    ) -> Result<UvUpdateReport> {
+        let mut lv = loop_vertices.to_vec();
         lv.sort_unstable();
         lv.dedup();
         self.loop_vertices = lv;
-        let r = self.update_uv_with_coloring(&analysis.coloring, Some(positions));
+        let r = self.update_uv_with_coloring(coloring, positions);
         self.loop_vertices.clear();
         r
     }
@@ -237,7 +257,38 @@ impl ChaKo {
         am: &'a AnalysisMesh,
         analysis: &'a Analysis,
     ) -> MchPolicy<'a> {
-        MchPolicy::new(am, &analysis.coloring, self.params.eps, self.eps_rg)
+        let mut p = MchPolicy::new(am, &analysis.coloring, self.params.eps, self.eps_rg);
+        p.mixed_edges = self.params.mixed_edges;
+        p
+    }
+
+    /// Applies [`Params::persistent_green`] to a fresh analysis of `am`: vertices green at the
+    /// previous call stay green, and edges, triangles, out-most red vertices and red* triangles
+    /// are recoloured from the result (Sec. 3). Remembers the red vertices for the next call.
+    pub fn persist_coloring(&mut self, am: &AnalysisMesh, analysis: &mut Analysis) {
+        if !self.params.persistent_green {
+            return;
+        }
+        if let Some(prev) = &self.prev_red {
+            if prev.len() == analysis.coloring.red_vertex.len() {
+                let red: Vec<bool> = analysis
+                    .coloring
+                    .red_vertex
+                    .iter()
+                    .zip(prev)
+                    .map(|(&a, &b)| a && b)
+                    .collect();
+                if red != analysis.coloring.red_vertex {
+                    analysis.coloring = crate::analysis::coloring::color(
+                        am,
+                        red,
+                        &analysis.crossings,
+                        &analysis.segments,
+                    );
+                }
+            }
+        }
+        self.prev_red = Some(analysis.coloring.red_vertex.clone());
     }
 
     fn check_analysis_mesh(&self, am: &AnalysisMesh) -> Result<()> {

@@ -1,6 +1,7 @@
 //! Parameters of the method (Cha & Ko 2022, Sec. 5.1, 5.3.1 and 9: gamma = 0.8, dt = 0.02 s,
 //! epsilon_RG = 0.1 x average edge length, epsilon_CCD = 1e-6).
 
+use super::policy::MixedEdges;
 use crate::error::{Error, Result};
 
 /// The smallest scale `gamma^level` any operation reaches (a subject edge keeps at least this
@@ -37,6 +38,20 @@ pub struct Params {
     /// inversion test (Sec. 6.1; the paper's Appendix C is not available). When off, such
     /// subjects are reported as stalled at once.
     pub fallback: bool,
+    /// Persistent green (ours, see docs/cha-ko.md): a vertex that was green at the previous
+    /// step stays green, whatever the analysis's region classification now says.
+    pub persistent_green: bool,
+    /// Shrink red* triangles toward a loop vertex when nothing else can be done (ours, see
+    /// [`super::schedule`]): nothing in progress, no out-most red vertex, every red* triangle's
+    /// target a loop vertex.
+    pub loop_target_last_resort: bool,
+    /// Pulls avoid loop-vertex targets while another green neighbour exists (ours, see
+    /// [`super::schedule`]). Off by default: it removes one stall mode but re-targets running
+    /// pulls whenever loop vertices move, and over the benchmarks it did not help overall.
+    pub avoid_loop_pull_targets: bool,
+    /// Which edge-edge pairs with a *mixed* edge (one red, one green end) m-CCH lets cross
+    /// (experiment, ours; see [`MixedEdges`]). Default: the paper's (such an edge is red).
+    pub mixed_edges: MixedEdges,
 }
 
 impl Default for Params {
@@ -51,6 +66,10 @@ impl Default for Params {
             hold_steps: 20,
             revoke_levels_per_step: 1,
             fallback: true,
+            persistent_green: false,
+            loop_target_last_resort: true,
+            avoid_loop_pull_targets: false,
+            mixed_edges: MixedEdges::Red,
         }
     }
 }

@@ -39,6 +39,20 @@ pub fn pair_colour(a_red: bool, b_red: bool) -> PairColour {
     }
 }
 
+/// How an edge with one red and one green end (a *mixed* edge; red by Sec. 3) takes part in
+/// edge-edge pairs of m-CCH. An experiment about the theorem's first part (Sec. 7, footnote 7):
+/// the red-vertex count increased only after such an edge crossed another red edge.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub enum MixedEdges {
+    /// The paper: a mixed edge is red (it crosses any red edge).
+    Red,
+    /// A mixed edge counts as green: it never crosses another edge.
+    Green,
+    /// Two mixed edges do not cross each other (red-green thickness); a mixed edge crosses
+    /// other red edges.
+    NotWithMixed,
+}
+
 /// The m-CCH rule for a colour class: red-red may cross, red-green keeps `eps_rg`, green-green
 /// keeps `eps`.
 #[inline]
@@ -63,6 +77,8 @@ pub struct MchPolicy<'a> {
     pub eps: f64,
     /// Red-green thickness.
     pub eps_rg: f64,
+    /// How edges with one red and one green end take part in edge-edge pairs.
+    pub mixed_edges: MixedEdges,
 }
 
 impl<'a> MchPolicy<'a> {
@@ -73,7 +89,34 @@ impl<'a> MchPolicy<'a> {
             coloring,
             eps,
             eps_rg,
+            mixed_edges: MixedEdges::Red,
         }
+    }
+
+    /// Whether edge `e` (analysis-mesh topology index) has one red and one green end.
+    #[inline]
+    fn mixed(&self, e: u32) -> bool {
+        let [a, b] = self.mesh.topology.edges[e as usize];
+        self.coloring.red_vertex[a as usize] != self.coloring.red_vertex[b as usize]
+    }
+
+    /// Colour class of the edge pair `(e0, e1)` under [`MchPolicy::mixed_edges`].
+    #[inline]
+    fn edge_pair(&self, e0: u32, e1: u32) -> PairColour {
+        let c = self.coloring;
+        let (r0, r1) = (c.red_edge[e0 as usize], c.red_edge[e1 as usize]);
+        let (r0, r1) = match self.mixed_edges {
+            MixedEdges::Red => (r0, r1),
+            MixedEdges::Green => (r0 && !self.mixed(e0), r1 && !self.mixed(e1)),
+            MixedEdges::NotWithMixed => {
+                if self.mixed(e0) && self.mixed(e1) {
+                    (false, r1)
+                } else {
+                    (r0, r1)
+                }
+            }
+        };
+        pair_colour(r0, r1)
     }
 
     fn vertex_is_cloth(&self, v: u32) -> bool {
@@ -103,25 +146,17 @@ impl<'a> MchPolicy<'a> {
         if !cloth(e0) || !cloth(e1) {
             return PairColour::GreenGreen;
         }
-        pair_colour(
-            self.coloring.red_edge[e0 as usize],
-            self.coloring.red_edge[e1 as usize],
-        )
+        self.edge_pair(e0, e1)
     }
 
     /// Rule for the edge `(a0, a1)` against the edge `(b0, b1)`, given by their vertices. An
     /// unknown edge (not in the mesh) is treated as green.
     pub fn edge_edge_by_vertices(&self, a: [u32; 2], b: [u32; 2]) -> Contact {
         let topo = &self.mesh.topology;
-        let red = |e: [u32; 2]| {
-            topo.edge_between(e[0], e[1])
-                .is_some_and(|i| self.coloring.red_edge[i as usize])
-        };
         let cloth = |e: [u32; 2]| self.vertex_is_cloth(e[0]);
-        let colour = if cloth(a) && cloth(b) {
-            pair_colour(red(a), red(b))
-        } else {
-            PairColour::GreenGreen
+        let colour = match (topo.edge_between(a[0], a[1]), topo.edge_between(b[0], b[1])) {
+            (Some(i), Some(j)) if cloth(a) && cloth(b) => self.edge_pair(i, j),
+            _ => PairColour::GreenGreen,
         };
         rule(colour, self.eps, self.eps_rg)
     }
@@ -148,14 +183,7 @@ impl ContactPolicy for MchPolicy<'_> {
     /// Cloth edge against cloth edge (garment topology edge indices).
     #[inline]
     fn edge_edge(&self, edge_a: u32, edge_b: u32) -> Contact {
-        rule(
-            pair_colour(
-                self.coloring.red_edge[edge_a as usize],
-                self.coloring.red_edge[edge_b as usize],
-            ),
-            self.eps,
-            self.eps_rg,
-        )
+        rule(self.edge_pair(edge_a, edge_b), self.eps, self.eps_rg)
     }
 }
 

@@ -143,6 +143,11 @@ pub struct UvUpdateReport {
     /// is a loop vertex of an intersection path: the intersection starts at the target, so
     /// shrinking toward it can never finish (see [`super::schedule`]).
     pub blocked_loop_target: usize,
+    /// Out-most red vertices whose loop-vertex neighbours were left out as pull targets
+    /// because another green neighbour was available (ours, see [`super::schedule`]).
+    pub pull_loop_targets_skipped: usize,
+    /// Shrinks toward a loop vertex started as a last resort (ours, see [`super::schedule`]).
+    pub loop_target_last_resort: usize,
     /// Operations abandoned this step.
     pub abandoned: usize,
     /// Candidate targets / shrinks that failed the inversion test.

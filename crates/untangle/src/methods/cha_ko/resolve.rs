@@ -208,10 +208,11 @@ impl Resolver {
         let analysis = analyze_with(&self.am, &pos, &self.params.analysis);
         let t1 = Instant::now();
         let ms = |x: Instant, y: Instant| (y - x).as_secs_f64() * 1e3;
-        let a = match analysis {
+        let mut a = match analysis {
             Ok(a) => a,
             Err(e) => return Ok(self.step_without_analysis(format!("{e:?}"), ms(t0, t1))),
         };
+        self.chako.persist_coloring(&self.am, &mut a);
         let uv = if self.params.uv_update {
             self.chako.update_uv(&self.am, &a, &pos)?
         } else {
@@ -270,7 +271,8 @@ impl Resolver {
         let sr = match &self.last_coloring {
             Some(c) => {
                 let p = &self.chako.params;
-                let policy = super::MchPolicy::new(&self.am, c, p.eps, self.chako.eps_rg);
+                let mut policy = super::MchPolicy::new(&self.am, c, p.eps, self.chako.eps_rg);
+                policy.mixed_edges = p.mixed_edges;
                 self.sim.step(&policy)
             }
             None => self.sim.step(&UniformThickness(self.chako.params.eps)),

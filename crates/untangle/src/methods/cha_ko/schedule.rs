@@ -43,7 +43,21 @@
 //!   triangle *of the same fan*, along a segment that starts at the target itself. Shrinking
 //!   toward the target scales that segment but never removes it: the operation can only
 //!   saturate (it did, and held the LL case stuck). Such triangles are left to the pulls of the
-//!   red region around them and to the red* triangle across the same red edge.
+//!   red region around them and to the red* triangle across the same red edge. As a *last
+//!   resort* ([`super::Params::loop_target_last_resort`], on by default) they are shrunk after
+//!   all: when nothing is in progress, no out-most red vertex exists and every red* triangle's
+//!   target is a loop vertex, the loop would otherwise stop with nothing to do (CROSS); such a
+//!   shrink continues while its triangle stays red*.
+//! - Optionally ([`super::Params::avoid_loop_pull_targets`], off by default) and for the same
+//!   reason a pull avoids a loop-vertex target (ours): among the green
+//!   neighbours of an out-most red vertex, loop vertices are left out while another green
+//!   neighbour is available, and a running pull whose target becomes a loop vertex ends (is
+//!   revoked, then re-targeted) if the subject has such a neighbour. At a loop vertex the fan of
+//!   the target intersects the subject's fan; the triangle the subject has to cross contains
+//!   the target, which m-CCH does not hold `eps_RG` away from its own triangles, so the VT-type
+//!   finesse (Sec. 7, Fig. 11a) cannot be completed by shortening the subject edge. Exploded
+//!   handkerchief seed 13 stalled on exactly this: one red vertex pulled toward the two loop
+//!   vertices of an LL path, saturating three times (world edge 8x its rest length).
 //! - Sec. 6.1 (no TIT-passable fan): a candidate whose every proposal fails the test yields its
 //!   turn (lines 4 and 8). After both loops, such candidates whose subjects and fans are still
 //!   untouched get a fallback operation ([`super::fallback`]), so a regular operation always has
@@ -80,6 +94,7 @@ impl ChaKo {
             moved,
             tabu,
             loop_vertices,
+            last_resort_ops,
             ..
         } = self;
         let step = *step;
@@ -126,6 +141,24 @@ impl ChaKo {
             }
         }
 
+        // (ours) Last resort: nothing is in progress and the only candidates are red*
+        // triangles whose target is a loop vertex; then they are shrunk after all (see the
+        // module text), and such a shrink continues while warranted.
+        let target_of = |t: u32| -> Option<u32> {
+            let tri = g.mesh.triangles[t as usize];
+            let k = (0..3).find(|&k| col.red_edge[topo.triangle_edges[t as usize][k] as usize])?;
+            Some(tri[(k + 2) % 3])
+        };
+        let last_resort = params.loop_target_last_resort
+            && state.ops.is_empty()
+            && !col.outmost_red.iter().any(|&x| x < nv)
+            && col
+                .red_star
+                .iter()
+                .filter(|&&t| t < nt)
+                .filter_map(|&t| target_of(t))
+                .all(|i| loop_vertices.binary_search(&i).is_ok());
+
         // Lines 2-5: red* triangles.
         for &t in &col.red_star {
             if t >= nt {
@@ -138,9 +171,17 @@ impl ChaKo {
                 continue;
             };
             let (j, kk, i) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
-            if loop_vertices.binary_search(&i).is_ok() {
-                rep.blocked_loop_target += 1;
-                continue;
+            let loop_target = loop_vertices.binary_search(&i).is_ok();
+            if loop_target && !last_resort {
+                let o = state.owner[j as usize];
+                let running = o != NONE
+                    && last_resort_ops.contains(&o)
+                    && state.ops[&o].triangle == t
+                    && log[o as usize].end.is_none();
+                if !running {
+                    rep.blocked_loop_target += 1;
+                    continue;
+                }
             }
             if moved[j as usize] == stamp || moved[kk as usize] == stamp {
                 rep.blocked_subject += 1;
@@ -190,7 +231,11 @@ impl ChaKo {
                         continue;
                     };
                     regular_moves += 1;
-                    start(mesh, state, log, p, step, params.level_cap(), &mut rep);
+                    let id = start(mesh, state, log, p, step, params.level_cap(), &mut rep);
+                    if loop_target {
+                        last_resort_ops.insert(id);
+                        rep.loop_target_last_resort += 1;
+                    }
                     touched.push(true);
                     rep.shrinks_started += 1;
                 }
@@ -218,8 +263,12 @@ impl ChaKo {
                 continue;
             }
             if o != NONE {
-                // Continue the finesse while its target is green; otherwise it ends below.
-                if !col.red_vertex[state.ops[&o].target as usize] {
+                // Continue the finesse while its target is green (and not a loop vertex that
+                // can be avoided); otherwise it ends below.
+                let target = state.ops[&o].target;
+                let avoid = params.avoid_loop_pull_targets
+                    && avoidable_loop_target(topo, col, loop_vertices, x, target);
+                if !col.red_vertex[target as usize] && !avoid {
                     touched[o as usize] = true;
                     if state.advance(o) {
                         rep.pulls_continued += 1;
@@ -244,6 +293,21 @@ impl ChaKo {
             if candidates.len() < green.len() {
                 rep.blocked_tabu += 1;
             }
+            // (ours) Loop vertices are targets only when nothing else is green: see the
+            // module text.
+            let off_loop: Vec<u32> = candidates
+                .iter()
+                .copied()
+                .filter(|w| loop_vertices.binary_search(w).is_err())
+                .collect();
+            let candidates = if off_loop.is_empty() || !params.avoid_loop_pull_targets {
+                candidates
+            } else {
+                if off_loop.len() < candidates.len() {
+                    rep.pull_loop_targets_skipped += 1;
+                }
+                off_loop
+            };
             if candidates.is_empty() {
                 continue;
             }
@@ -313,9 +377,16 @@ impl ChaKo {
                 continue;
             }
             let op = &state.ops[&id];
-            let (warranted, finished) = warranted(mesh, op, col);
+            let avoid: &[u32] = if params.avoid_loop_pull_targets {
+                loop_vertices
+            } else {
+                &[]
+            };
+            let (warranted, finished) = warranted(mesh, op, col, avoid);
             let warranted = warranted
-                && !(op.kind == OpKind::Shrink && loop_vertices.binary_search(&op.target).is_ok());
+                && !(op.kind == OpKind::Shrink
+                    && loop_vertices.binary_search(&op.target).is_ok()
+                    && !last_resort_ops.contains(&id));
             if warranted && log[id as usize].end.is_none() {
                 rep.paused += 1;
                 continue;
@@ -401,8 +472,25 @@ struct Deferred {
     rejected: Vec<super::operations::Proposal>,
 }
 
+/// Whether the pull of `x` toward `target` aims at a loop vertex while `x` has a green
+/// neighbour that is not one (see the module text).
+fn avoidable_loop_target(
+    topo: &crate::mesh::Topology,
+    col: &Coloring,
+    loop_vertices: &[u32],
+    x: u32,
+    target: u32,
+) -> bool {
+    loop_vertices.binary_search(&target).is_ok()
+        && topo
+            .vertex_neighbors
+            .row(x as usize)
+            .iter()
+            .any(|&w| !col.red_vertex[w as usize] && loop_vertices.binary_search(&w).is_err())
+}
+
 /// Whether the colouring still warrants `op`, and whether its finesse is complete.
-fn warranted(mesh: &UvMesh, op: &Op, col: &Coloring) -> (bool, bool) {
+fn warranted(mesh: &UvMesh, op: &Op, col: &Coloring, loop_vertices: &[u32]) -> (bool, bool) {
     let topo = &mesh.garment.topology;
     match op.kind {
         OpKind::Pull => {
@@ -414,7 +502,9 @@ fn warranted(mesh: &UvMesh, op: &Op, col: &Coloring) -> (bool, bool) {
                     .row(x as usize)
                     .iter()
                     .any(|&w| !col.red_vertex[w as usize]);
-            (outmost && !col.red_vertex[op.target as usize], !red)
+            let target_ok = !col.red_vertex[op.target as usize]
+                && !avoidable_loop_target(topo, col, loop_vertices, x, op.target);
+            (outmost && target_ok, !red)
         }
         OpKind::Shrink => {
             let e = topo
