@@ -233,7 +233,6 @@ fn timed(label: usize, verts: usize, sim: &mut Simulator) {
 /// timed) and the step runs with the m-CCH policy `RedGreen` (red-red pairs skipped, red-green
 /// pairs at epsilon_RG = 0.1 x mean edge length, green-green at 1e-6 m).
 fn tangled(base: &Mesh, level: usize, patches: usize, steps: usize, arcsim_uv: bool) {
-    use rand::{Rng, SeedableRng};
     use untangle::analysis::{analyze, AnalysisMesh, ObjectKind};
     use untangle::sim::RedGreen;
     let mut mesh = base.clone();
@@ -248,39 +247,7 @@ fn tangled(base: &Mesh, level: usize, patches: usize, steps: usize, arcsim_uv: b
         ));
     }
     let g0 = Garment::new(mesh.clone()).expect("garment");
-    let avg = g0
-        .topology
-        .edges
-        .iter()
-        .map(|e| (mesh.positions[e[0] as usize] - mesh.positions[e[1] as usize]).norm())
-        .sum::<f64>()
-        / g0.topology.edges.len() as f64;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-    let interior: Vec<u32> = (0..mesh.positions.len() as u32)
-        .filter(|&v| !g0.topology.boundary_vertex[v as usize])
-        .collect();
-    for _ in 0..patches {
-        let c = interior[rng.random_range(0..interior.len())];
-        let centre = mesh.positions[c as usize];
-        let mut ring = vec![c];
-        for _ in 0..2 {
-            let next: Vec<u32> = ring
-                .iter()
-                .flat_map(|&v| g0.topology.vertex_neighbors.row(v as usize).iter().copied())
-                .collect();
-            ring.extend(next);
-            ring.sort_unstable();
-            ring.dedup();
-        }
-        for v in ring {
-            let r = rng.random_range(0.0..avg);
-            let phi = rng.random_range(0.0..std::f64::consts::TAU);
-            let z: f64 = rng.random_range(-1.0..1.0);
-            let s = (1.0 - z * z).sqrt();
-            mesh.positions[v as usize] =
-                centre + Vec3::new(r * s * phi.cos(), r * s * phi.sin(), r * z);
-        }
-    }
+    let avg = untangle::scenes::exploded::explode_patches(&mut mesh, &g0.topology, patches, 7);
     let g = Garment::new(mesh.clone()).expect("garment");
     let params = SimParams {
         gravity: Vec3::zeros(),

@@ -6,9 +6,14 @@
 //! on the boundary) is redrawn from the same seeded stream, so every seed gives a scene within the
 //! theorem's range.
 
+//!
+//! [`explode_patches`] applies the same kind of explosion to small patches of any garment (the
+//! tangled garments of Sec. 9.3 and the seam measurements of Sec. 8 / Table 1).
+
 use super::{handkerchief, Scene};
 use crate::analysis::{analyze, AnalysisMesh};
 use crate::geom::Vec3;
+use crate::mesh::{Mesh, Topology};
 use rand::{Rng, SeedableRng};
 
 /// Default ball radius, relative to the handkerchief side 1.
@@ -57,4 +62,127 @@ pub fn exploded(seed: u64, n: usize) -> Scene {
         }
     }
     unreachable!("1000 draws without a BLI-free explosion")
+}
+
+/// Mean world-space length of the edges of `topology` at `positions`.
+pub fn mean_edge_length(positions: &[Vec3], topology: &Topology) -> f64 {
+    topology
+        .edges
+        .iter()
+        .map(|e| (positions[e[0] as usize] - positions[e[1] as usize]).norm())
+        .sum::<f64>()
+        / topology.num_edges().max(1) as f64
+}
+
+/// Tangles a garment locally, in the manner of Cha & Ko Sec. 9.2 applied to patches: `patches`
+/// times, an interior vertex is drawn (seeded), and every vertex within two rings of it is thrown
+/// to a uniformly random direction at a uniform distance in `[0, r)` from the centre's current
+/// position, `r` being the mesh's mean edge length (returned). Patches may overlap; boundary
+/// vertices can move when they lie in a patch. Same `seed`, same result.
+pub fn explode_patches(mesh: &mut Mesh, topology: &Topology, patches: usize, seed: u64) -> f64 {
+    let r0 = mean_edge_length(&mesh.positions, topology);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let interior: Vec<u32> = (0..mesh.positions.len() as u32)
+        .filter(|&v| !topology.boundary_vertex[v as usize])
+        .collect();
+    if interior.is_empty() {
+        return r0;
+    }
+    for _ in 0..patches {
+        let c = interior[rng.random_range(0..interior.len())];
+        let centre = mesh.positions[c as usize];
+        let mut ring = vec![c];
+        for _ in 0..2 {
+            let next: Vec<u32> = ring
+                .iter()
+                .flat_map(|&v| topology.vertex_neighbors.row(v as usize).iter().copied())
+                .collect();
+            ring.extend(next);
+            ring.sort_unstable();
+            ring.dedup();
+        }
+        for v in ring {
+            let r = rng.random_range(0.0..r0);
+            let phi = rng.random_range(0.0..std::f64::consts::TAU);
+            let z: f64 = rng.random_range(-1.0..1.0);
+            let s = (1.0 - z * z).sqrt();
+            mesh.positions[v as usize] =
+                centre + Vec3::new(r * s * phi.cos(), r * s * phi.sin(), r * z);
+        }
+    }
+    r0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sheet() -> (Mesh, Topology) {
+        let m = handkerchief("sheet", 12, 12, 1.0, 1.0, |p| Vec3::new(p.x, p.y, 0.0));
+        let t = Topology::new(&m).unwrap();
+        (m, t)
+    }
+
+    /// Graph distance (in edges) from `c`, by breadth-first search: the oracle for "two rings".
+    fn hops(t: &Topology, c: u32) -> Vec<usize> {
+        let mut d = vec![usize::MAX; t.vertex_neighbors.rows()];
+        d[c as usize] = 0;
+        let mut queue = std::collections::VecDeque::from([c]);
+        while let Some(v) = queue.pop_front() {
+            for &w in t.vertex_neighbors.row(v as usize) {
+                if d[w as usize] == usize::MAX {
+                    d[w as usize] = d[v as usize] + 1;
+                    queue.push_back(w);
+                }
+            }
+        }
+        d
+    }
+
+    #[test]
+    fn mean_edge_length_of_a_unit_grid() {
+        // 12 x 12 cells of side 1/12 with one diagonal each: 2 * 12 * 13 axis edges of length
+        // h and 144 diagonals of length h * sqrt(2).
+        let (m, t) = sheet();
+        let h = 1.0 / 12.0;
+        let want = (2.0 * 12.0 * 13.0 * h + 144.0 * h * 2f64.sqrt()) / (2.0 * 12.0 * 13.0 + 144.0);
+        assert!((mean_edge_length(&m.positions, &t) - want).abs() < 1e-12);
+    }
+
+    #[test]
+    fn one_patch_moves_exactly_two_rings_within_the_radius_and_tangles() {
+        let (m0, t) = sheet();
+        for seed in 0..8 {
+            let mut m = m0.clone();
+            let r0 = explode_patches(&mut m, &t, 1, seed);
+            let moved: Vec<u32> = (0..m.positions.len() as u32)
+                .filter(|&v| m.positions[v as usize] != m0.positions[v as usize])
+                .collect();
+            // Some interior vertex is the centre: its two-ring is exactly the moved set (every
+            // thrown vertex lands elsewhere almost surely), and every moved vertex lies within
+            // r0 of the centre's original position.
+            let is_centre = |c: u32| {
+                let d = hops(&t, c);
+                let ring: Vec<u32> = (0..d.len() as u32)
+                    .filter(|&v| d[v as usize] <= 2)
+                    .collect();
+                !t.boundary_vertex[c as usize]
+                    && ring == moved
+                    && moved
+                        .iter()
+                        .all(|&v| (m.positions[v as usize] - m0.positions[c as usize]).norm() < r0)
+            };
+            assert!(moved.len() >= 7, "seed {seed}: {} moved", moved.len());
+            assert!(
+                moved.iter().any(|&c| is_centre(c)),
+                "seed {seed}: no centre"
+            );
+            // Deterministic, and the explosion tangles the sheet.
+            let mut again = m0.clone();
+            explode_patches(&mut again, &t, 1, seed);
+            assert_eq!(again.positions, m.positions);
+            let (am, pos) = AnalysisMesh::single(&m).unwrap();
+            assert!(!analyze(&am, &pos).unwrap().is_clean(), "seed {seed}");
+        }
+    }
 }
