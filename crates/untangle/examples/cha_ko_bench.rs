@@ -9,8 +9,10 @@
 //! cargo run --release -p untangle --example cha_ko_bench -- [subdivisions] [patches] [steps]
 //! ```
 
+mod common;
+
 use untangle::geom::Vec3;
-use untangle::mesh::{obj, subdivide, Garment};
+use untangle::mesh::{subdivide, Garment};
 use untangle::methods::cha_ko::{ResolveParams, Resolver};
 
 fn main() {
@@ -21,11 +23,7 @@ fn main() {
             .unwrap_or(d)
     };
     let (subdivisions, patches, steps) = (arg(1, 2), arg(2, 3), arg(3, 30));
-    let shared = std::env::var("UNTANGLE_SHARED")
-        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared").into());
-    let path = std::path::Path::new(&shared).join("data/arcsim/meshes/tshirt.obj");
-    let Ok(mut mesh) = obj::read_obj(&path) else {
-        eprintln!("skipping: {} not found", path.display());
+    let Some(mut mesh) = common::arcsim_mesh("tshirt") else {
         return;
     };
     for _ in 0..subdivisions {

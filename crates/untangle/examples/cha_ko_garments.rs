@@ -12,10 +12,12 @@
 //! cargo run --release -p untangle --example cha_ko_garments -- [min_vertices] [tangle_steps] [max_steps]
 //! ```
 
+mod common;
+
 use std::time::Instant;
 use untangle::analysis::{analyze, AnalysisMesh, PathKind};
 use untangle::geom::Vec3;
-use untangle::mesh::{obj, subdivide, Garment};
+use untangle::mesh::{subdivide, Garment};
 use untangle::methods::cha_ko::{ResolveParams, Resolver};
 
 fn main() {
@@ -26,15 +28,10 @@ fn main() {
             .unwrap_or(d)
     };
     let (min_vertices, tangle_steps, max_steps) = (arg(1, 2000), arg(2, 25), arg(3, 600));
-    let shared = std::env::var("UNTANGLE_SHARED")
-        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared").into());
-    let dir = std::path::Path::new(&shared).join("data/arcsim/meshes");
     println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for name in ["tshirt", "dress3", "pants3"] {
-        let path = dir.join(format!("{name}.obj"));
-        let Ok(mut mesh) = obj::read_obj(&path) else {
-            eprintln!("skipping: {} not found", path.display());
+        let Some(mut mesh) = common::arcsim_mesh(name) else {
             return;
         };
         while mesh.positions.len() < min_vertices {

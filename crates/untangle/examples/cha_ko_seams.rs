@@ -14,10 +14,12 @@
 //! ```
 //! Data: `$UNTANGLE_SHARED/data/arcsim/meshes/tshirt.obj` (default `../shared`).
 
+mod common;
+
 use rand::{Rng, SeedableRng};
 use untangle::analysis::{analyze, AnalysisMesh};
 use untangle::geom::Vec3;
-use untangle::mesh::{obj, subdivide, Garment};
+use untangle::mesh::{subdivide, Garment};
 use untangle::methods::cha_ko::{FinesseRecord, FinesseStats, Outcome, ResolveParams, Resolver};
 
 fn main() {
@@ -28,11 +30,7 @@ fn main() {
             .unwrap_or(d)
     };
     let (subdivisions, scenes, max_steps) = (arg(1, 1), arg(2, 8), arg(3, 300));
-    let shared = std::env::var("UNTANGLE_SHARED")
-        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared").into());
-    let path = std::path::Path::new(&shared).join("data/arcsim/meshes/tshirt.obj");
-    let Ok(mut mesh) = obj::read_obj(&path) else {
-        eprintln!("skipping: {} not found", path.display());
+    let Some(mut mesh) = common::arcsim_mesh("tshirt") else {
         return;
     };
     for _ in 0..subdivisions {
@@ -94,6 +92,13 @@ fn main() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(k as u64);
         let on_seam = k % 2 == 0;
         let pool = if on_seam { &seam } else { &off };
+        if pool.is_empty() {
+            eprintln!(
+                "scene {k}: no interior {} vertex to explode around",
+                if on_seam { "seam" } else { "off-seam" }
+            );
+            continue;
+        }
         let c = pool[rng.random_range(0..pool.len())];
         let centre = mesh.positions[c as usize];
         let r0 = avg;

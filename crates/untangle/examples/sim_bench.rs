@@ -14,16 +14,11 @@
 //! `CELLS x CELLS` cells (35, 70, 141: about 1.3k, 5k, 20k vertices) pinned at two corners,
 //! falling and folding onto itself. `tangled`: see [`tangled`].
 
-use std::path::PathBuf;
-use untangle::geom::Vec3;
-use untangle::mesh::{obj, subdivide::subdivide, Garment, Mesh};
-use untangle::sim::{SimParams, Simulator, UniformThickness};
+mod common;
 
-fn shared() -> PathBuf {
-    std::env::var("UNTANGLE_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|_| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared")))
-}
+use untangle::geom::Vec3;
+use untangle::mesh::{subdivide::subdivide, Garment, Mesh};
+use untangle::sim::{SimParams, Simulator, UniformThickness};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -33,9 +28,7 @@ fn main() {
                 .map(|s| s.parse().expect("a number"))
                 .unwrap_or(d)
         };
-        let path = shared().join("data/arcsim/meshes/tshirt.obj");
-        let Ok(base) = obj::read_obj(&path) else {
-            eprintln!("skipping: {} not found", path.display());
+        let Some(base) = common::arcsim_mesh("tshirt") else {
             return;
         };
         let arcsim_uv = args.iter().any(|a| a == "--arcsim-uv");
@@ -85,9 +78,7 @@ fn main() {
     } else {
         levels
     };
-    let path = shared().join("data/arcsim/meshes/tshirt.obj");
-    let Ok(base) = obj::read_obj(&path) else {
-        eprintln!("skipping: {} not found", path.display());
+    let Some(base) = common::arcsim_mesh("tshirt") else {
         return;
     };
     header("level");

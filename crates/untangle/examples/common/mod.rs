@@ -1,0 +1,27 @@
+//! Shared by the benchmark examples: where the shared data folder is, and loading an ARCSim
+//! garment from it (research licence: the data stays in `../shared`, never copied here).
+
+#![allow(dead_code)] // each example uses part of this
+
+use std::path::PathBuf;
+use untangle::mesh::{obj, Mesh};
+
+/// The shared data folder: `$UNTANGLE_SHARED`, else `../shared` beside the repository.
+pub fn shared_dir() -> PathBuf {
+    std::env::var_os("UNTANGLE_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared")))
+}
+
+/// `data/arcsim/meshes/NAME.obj` from the shared folder, or `None` after printing a
+/// "skipping" note when it is absent or unreadable.
+pub fn arcsim_mesh(name: &str) -> Option<Mesh> {
+    let path = shared_dir().join(format!("data/arcsim/meshes/{name}.obj"));
+    match obj::read_obj(&path) {
+        Ok(m) => Some(m),
+        Err(e) => {
+            eprintln!("skipping: {e}");
+            None
+        }
+    }
+}
