@@ -16,19 +16,12 @@ use untangle::mesh::{subdivide, Garment};
 use untangle::methods::cha_ko::{ResolveParams, Resolver};
 
 fn main() {
-    let arg = |i: usize, d: usize| {
-        std::env::args()
-            .nth(i)
-            .map(|s| s.parse().expect("a number"))
-            .unwrap_or(d)
-    };
+    use common::arg;
     let (subdivisions, patches, steps) = (arg(1, 2), arg(2, 3), arg(3, 30));
     let Some(mut mesh) = common::arcsim_mesh("tshirt") else {
         return;
     };
-    for _ in 0..subdivisions {
-        mesh = subdivide::subdivide(&mesh);
-    }
+    mesh = subdivide::subdivide_n(&mesh, subdivisions);
     let g0 = Garment::new(mesh.clone()).expect("garment");
     untangle::scenes::exploded::explode_patches(&mut mesh, &g0.topology, patches, 7);
     let g = Garment::new(mesh).expect("garment");

@@ -21,12 +21,7 @@ use untangle::mesh::{subdivide, Garment};
 use untangle::methods::cha_ko::{ResolveParams, Resolver};
 
 fn main() {
-    let arg = |i: usize, d: usize| {
-        std::env::args()
-            .nth(i)
-            .map(|s| s.parse().expect("a number"))
-            .unwrap_or(d)
-    };
+    use common::arg;
     let (min_vertices, tangle_steps, max_steps) = (arg(1, 2000), arg(2, 25), arg(3, 600));
     println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");

@@ -23,28 +23,14 @@ use untangle::mesh::{subdivide, Garment};
 use untangle::methods::cha_ko::{FinesseRecord, FinesseStats, Outcome, ResolveParams, Resolver};
 
 fn main() {
-    let arg = |i: usize, d: usize| {
-        std::env::args()
-            .nth(i)
-            .map(|s| s.parse().expect("a number"))
-            .unwrap_or(d)
-    };
+    use common::arg;
     let (subdivisions, scenes, max_steps) = (arg(1, 1), arg(2, 8), arg(3, 300));
     let Some(mut mesh) = common::arcsim_mesh("tshirt") else {
         return;
     };
-    for _ in 0..subdivisions {
-        mesh = subdivide::subdivide(&mesh);
-    }
+    mesh = subdivide::subdivide_n(&mesh, subdivisions);
     let g0 = Garment::new(mesh.clone()).expect("garment");
-    let avg = {
-        let t = &g0.topology;
-        t.edges
-            .iter()
-            .map(|e| (mesh.positions[e[0] as usize] - mesh.positions[e[1] as usize]).norm())
-            .sum::<f64>()
-            / t.num_edges() as f64
-    };
+    let avg = untangle::scenes::exploded::mean_edge_length(&mesh.positions, &g0.topology);
     println!(
         "t-shirt x{subdivisions}: {} vertices, {} triangles, {} panels, {} seam vertices, mean edge {:.4} m",
         mesh.positions.len(),

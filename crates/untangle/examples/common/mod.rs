@@ -25,3 +25,11 @@ pub fn arcsim_mesh(name: &str) -> Option<Mesh> {
         }
     }
 }
+
+/// Positional argument `i` of the process (1-based) as a number, `default` when absent.
+pub fn arg(i: usize, default: usize) -> usize {
+    std::env::args()
+        .nth(i)
+        .map(|s| s.parse().expect("a number"))
+        .unwrap_or(default)
+}

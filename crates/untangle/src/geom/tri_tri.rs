@@ -58,6 +58,29 @@ pub fn straddling_edge_crosses_triangle(
     orient3d_sos([p, q, c, a], [ip, iq, ic, ia]) == s1
 }
 
+/// The signs of the three side orientations of edge `pq` with the edges of triangle `(a, b, c)`:
+/// with `A, B, C` the corners relative to `p` and `d = q - p`, the signs of `d . (A x B)`,
+/// `d . (B x C)`, `d . (C x A)` (up to one common sign) in floating point, `0` where a forward
+/// error bound cannot certify the sign.
+#[inline]
+fn certified_side_signs(p: &Vec3, q: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> [i8; 3] {
+    let d = q - p;
+    let (pa, pb, pc) = (a - p, b - p, c - p);
+    let t = [
+        d.dot(&pa.cross(&pb)),
+        d.dot(&pb.cross(&pc)),
+        d.dot(&pc.cross(&pa)),
+    ];
+    let l1 = |v: &Vec3| v.x.abs() + v.y.abs() + v.z.abs();
+    let (ld, la, lb, lc) = (l1(&d), l1(&pa), l1(&pb), l1(&pc));
+    // Each term is a sum of six triple products of rounded differences; 1e-14 is far above the
+    // accumulated relative error (about 10 ulps) of that evaluation.
+    let k = 1e-14 * ld;
+    let e = [k * la * lb, k * lb * lc, k * lc * la];
+    let sign = |i: usize| (t[i] > e[i]) as i8 - (t[i] < -e[i]) as i8;
+    [sign(0), sign(1), sign(2)]
+}
+
 /// [`straddling_edge_crosses_triangle`] with a floating-point fast path: with `A, B, C` the
 /// triangle's corners relative to `p` and `d = q - p`, the three side orientations are the signs
 /// of `d . (A x B)`, `d . (B x C)`, `d . (C x A)` (up to one common sign). When all three are
@@ -72,19 +95,9 @@ pub fn straddling_edge_crosses_triangle_fast(
     c: &Vec3,
     ids: [u32; 5],
 ) -> bool {
-    let d = q - p;
-    let (pa, pb, pc) = (a - p, b - p, c - p);
-    let t1 = d.dot(&pa.cross(&pb));
-    let t2 = d.dot(&pb.cross(&pc));
-    let t3 = d.dot(&pc.cross(&pa));
-    let l1 = |v: &Vec3| v.x.abs() + v.y.abs() + v.z.abs();
-    let (ld, la, lb, lc) = (l1(&d), l1(&pa), l1(&pb), l1(&pc));
-    // Each term is a sum of six triple products of rounded differences; 1e-14 is far above the
-    // accumulated relative error (about 10 ulps) of that evaluation.
-    let k = 1e-14 * ld;
-    let (e1, e2, e3) = (k * la * lb, k * lb * lc, k * lc * la);
-    if t1.abs() > e1 && t2.abs() > e2 && t3.abs() > e3 {
-        return (t1 > 0.0) == (t2 > 0.0) && (t2 > 0.0) == (t3 > 0.0);
+    let s = certified_side_signs(p, q, a, b, c);
+    if !s.contains(&0) {
+        return s[0] == s[1] && s[1] == s[2];
     }
     straddling_edge_crosses_triangle(p, q, a, b, c, ids)
 }
@@ -103,19 +116,7 @@ pub fn edge_crosses_triangle_filtered(
     c: &Vec3,
     ids: [u32; 5],
 ) -> bool {
-    let d = q - p;
-    let (pa, pb, pc) = (a - p, b - p, c - p);
-    let t = [
-        d.dot(&pa.cross(&pb)),
-        d.dot(&pb.cross(&pc)),
-        d.dot(&pc.cross(&pa)),
-    ];
-    let l1 = |v: &Vec3| v.x.abs() + v.y.abs() + v.z.abs();
-    let (ld, la, lb, lc) = (l1(&d), l1(&pa), l1(&pb), l1(&pc));
-    let k = 1e-14 * ld;
-    let e = [k * la * lb, k * lb * lc, k * lc * la];
-    let sign = |i: usize| (t[i] > e[i]) as i8 - (t[i] < -e[i]) as i8;
-    let s = [sign(0), sign(1), sign(2)];
+    let s = certified_side_signs(p, q, a, b, c);
     if s.contains(&1) && s.contains(&-1) {
         return false;
     }

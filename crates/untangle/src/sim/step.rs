@@ -739,28 +739,20 @@ impl Simulator {
             } else {
                 None
             };
-            let mut r = match &mg {
-                Some(m) => pcg::solve(
-                    &self.pattern,
-                    &a,
-                    &rhs,
-                    &fl,
-                    &zz,
-                    &mut dv,
-                    settings,
-                    pcg::Preconditioner::Amg(m),
-                ),
-                None => pcg::solve(
-                    &self.pattern,
-                    &a,
-                    &rhs,
-                    &fl,
-                    &zz,
-                    &mut dv,
-                    settings,
-                    pcg::Preconditioner::BlockJacobi(coarse.as_ref()),
-                ),
+            let preconditioner = match &mg {
+                Some(m) => pcg::Preconditioner::Amg(m),
+                None => pcg::Preconditioner::BlockJacobi(coarse.as_ref()),
             };
+            let mut r = pcg::solve(
+                &self.pattern,
+                &a,
+                &rhs,
+                &fl,
+                &zz,
+                &mut dv,
+                settings,
+                preconditioner,
+            );
             if mg.is_some() {
                 if round == 0 {
                     self.amg_last = r.iterations;
