@@ -2,28 +2,10 @@
 //! `untangle demo` files. The oracle for "clean" is always a separate `untangle check` run on the
 //! written file.
 
+mod common;
+
+use common::{json, stderr, stdout, untangle};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn untangle(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_untangle"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
 
 /// A small exploded handkerchief the loop resolves in a few dozen steps.
 fn tangled(dir: &Path) {

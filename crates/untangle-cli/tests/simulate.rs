@@ -1,15 +1,8 @@
 //! End-to-end tests of `untangle simulate`: outputs, JSON per step, frames, exit codes.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn untangle(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_untangle"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run untangle")
-}
+use common::untangle;
 
 /// A flat 6x6 grid in the x-z plane, with uv, as OBJ text.
 fn grid_obj() -> String {
