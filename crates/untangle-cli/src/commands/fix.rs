@@ -35,8 +35,8 @@ pub struct Args {
     /// Write the untangled garment here (OBJ; original uv).
     #[arg(short = 'o', long)]
     pub out: PathBuf,
-    /// Resolution method.
-    #[arg(long, value_enum)]
+    /// Resolution method (Cha & Ko, the default, is the only one so far).
+    #[arg(long, value_enum, default_value = "cha-ko")]
     pub method: Method,
     /// Write the JSON report (summary, every step, every operation, what is left) here.
     #[arg(long)]
