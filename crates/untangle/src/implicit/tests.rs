@@ -655,3 +655,116 @@ fn arcsim_self_guard_adds_no_self_intersection() {
         "{v_on:?} vs input {v0:?}"
     );
 }
+
+/// Where the corrected field of layer `i` crosses zero on the line `s ↦ s·dir`, `s ∈ [-1, 1]`
+/// (scan, then bisection): the position of its corrected surface along `dir`.
+fn root_along(composer: &Composer, i: usize, dir: &Vec3) -> f64 {
+    let f = |s: f64| composer.evaluate(i, &(dir * s)).unwrap().value;
+    let n = 2000;
+    let mut a = -1.0;
+    let mut fa = f(a);
+    for k in 1..=n {
+        let b = -1.0 + 2.0 * k as f64 / n as f64;
+        let fb = f(b);
+        if (fa <= 0.0) != (fb <= 0.0) {
+            let (mut lo, mut hi) = (a, b);
+            for _ in 0..80 {
+                let m = 0.5 * (lo + hi);
+                if (f(m) <= 0.0) == (fa <= 0.0) {
+                    lo = m;
+                } else {
+                    hi = m;
+                }
+            }
+            return 0.5 * (lo + hi);
+        }
+        (a, fa) = (b, fb);
+    }
+    panic!("layer {i}: no zero on the line");
+}
+
+/// Two crossing planes (inner layer above the outer one at the origin: an inversion deeper than
+/// the thickness) with gradient norms `sa`, `sb` and normals `angle` apart; returns the gap
+/// between their corrected surfaces along the normal of the contact plane, found by root
+/// finding on the composed fields (oracle: the thickness rule), and the gap eq. 13 predicts.
+fn plane_gap(
+    angle: f64,
+    azimuth: f64,
+    s: [f64; 2],
+    w: [f64; 2],
+    t: [f64; 2],
+    scaled: bool,
+) -> (f64, f64) {
+    use super::shapes::PlaneField;
+    let tilt = |a: f64| Vec3::new(a.sin() * azimuth.cos(), a.sin() * azimuth.sin(), a.cos());
+    let na = tilt(0.5 * angle);
+    let nb = tilt(-0.5 * angle);
+    let fields = [
+        PlaneField {
+            normal: na,
+            offset: 0.05,
+            scale: s[0],
+        },
+        PlaneField {
+            normal: nb,
+            offset: -0.05,
+            scale: s[1],
+        },
+    ];
+    let layers: Vec<Layer> = (0..2)
+        .map(|k| Layer {
+            field: &fields[k] as &dyn LayerField,
+            weight: w[k],
+            thickness: t[k],
+        })
+        .collect();
+    let composer = Composer::new(&layers).unwrap().with_scaled_offsets(scaled);
+    // Contact plane: w_a f̃_a + w_b f̃_b = 0, normal ∝ w_a ∇f_a + w_b ∇f_b.
+    let g = na * (w[0] * s[0]) + nb * (w[1] * s[1]);
+    let dir = g.normalize();
+    let (ra, rb) = (
+        root_along(&composer, 0, &dir),
+        root_along(&composer, 1, &dir),
+    );
+    let delta = 0.5 * (t[0] + t[1]);
+    let eq13 = delta * (w[0] + w[1]) / g.norm();
+    (rb - ra, eq13)
+}
+
+#[test]
+fn scaled_offsets_give_the_thickness_rule_between_tilted_planes() {
+    // Unit distance fields, parallel: both versions give the rule exactly.
+    let (gap, eq13) = plane_gap(0.0, 0.0, [1.0, 1.0], [1.0, 1.0], [0.01, 0.01], true);
+    assert!(
+        (gap - 0.01).abs() < 1e-9 && (eq13 - 0.01).abs() < 1e-12,
+        "{gap}"
+    );
+    // Surfaces 50° apart (as the T-shirt and the dress at their contact): eq. 13 as written
+    // gives t / cos 25° (10 % wide), the scaled offsets the rule.
+    let a = 50f64.to_radians();
+    let (gap, eq13) = plane_gap(a, 0.3, [1.0, 1.0], [1.0, 1.0], [0.01, 0.01], true);
+    assert!((gap - 0.01).abs() < 1e-9, "{gap}");
+    let (plain, _) = plane_gap(a, 0.3, [1.0, 1.0], [1.0, 1.0], [0.01, 0.01], false);
+    assert!((plain - eq13).abs() < 1e-9 && (eq13 - 0.01 / (0.5 * a).cos()).abs() < 1e-12);
+    // Non-distance fields (gradient norms 1.3 and 0.8), unequal weights and thicknesses.
+    let (gap, _) = plane_gap(0.4, 1.0, [1.3, 0.8], [2.0, 1.0], [0.02, 0.006], true);
+    assert!((gap - 0.013).abs() < 1e-9, "{gap}");
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    #[test]
+    fn tilted_planes_keep_the_thickness_rule(
+        angle in 0.0f64..1.0, azimuth in 0.0f64..6.3,
+        sa in 0.6f64..1.6, sb in 0.6f64..1.6,
+        wa in 0.3f64..3.0, wb in 0.3f64..3.0,
+        ta in 0.0f64..0.02, tb in 0.001f64..0.02,
+    ) {
+        let (gap, eq13) = plane_gap(angle, azimuth, [sa, sb], [wa, wb], [ta, tb], true);
+        let rule = 0.5 * (ta + tb);
+        proptest::prop_assert!((gap - rule).abs() < 1e-9 * (1.0 + rule), "{} vs {}", gap, rule);
+        // Eq. 13 as written: the gap the contact plane's gradient predicts.
+        let (plain, _) = plane_gap(angle, azimuth, [sa, sb], [wa, wb], [ta, tb], false);
+        proptest::prop_assert!((plain - eq13).abs() < 1e-9, "{} vs {}", plain, eq13);
+    }
+}
