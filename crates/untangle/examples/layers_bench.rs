@@ -271,6 +271,7 @@ fn main() {
                         let mut n = 0usize;
                         let mut hist = [0usize; 6];
                         let mut gaps: Vec<(f64, f64, f64, f64, f64, f64)> = Vec::new();
+                        let mut by_run = [(0usize, 0.0f64, 0.0f64); 5];
                         for ((p, run), &act) in o2.positions[k]
                             .iter()
                             .zip(&o2.projections[k].run)
@@ -330,6 +331,10 @@ fn main() {
                             );
                             let cos = gl.dot(&gu) / (gl.norm() * gu.norm());
                             gaps.push((d, gap_impl, res, cos, incontact, cq.value));
+                            let rl = (cu.run.1 - cu.run.0 + 1).min(4);
+                            by_run[rl].0 += 1;
+                            by_run[rl].1 += gap_impl;
+                            by_run[rl].2 += d;
                         }
                         let nn = n.max(1) as f64;
                         eprintln!(
@@ -360,6 +365,9 @@ fn main() {
                         );
                         for g in gaps.iter().filter(|g| (g.0 - g.1).abs() > 0.003).take(8) {
                             eprintln!("      outlier: mesh {:.5} implicit {:.5} lower residual {:.2e} cos {:.3} lower in contact {:.2} f̂_lower(q) {:+.5}", g.0, g.1, g.2, g.3, g.4, g.5);
+                        }
+                        for (rl, &(n, gi, gm)) in by_run.iter().enumerate().filter(|x| x.1 .0 > 0) {
+                            eprintln!("    run of {rl} layers at p: {n} vertices, mean implicit gap {:.5}, mesh gap {:.5}", gi / n as f64, gm / n as f64);
                         }
                         let unc = o2.projections[k - 1].unconverged;
                         eprintln!(

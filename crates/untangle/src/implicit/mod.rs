@@ -27,9 +27,10 @@
 //! - Thickness offsets (Sec. 6.2): eq. 13 adds the rule `t_i/2 + t_j/2 (+ …)` in field units,
 //!   which is a geometric gap only for unit, parallel gradients; two garments meeting at 50°
 //!   (T-shirt and dress) or fields with `|∇f| ≈ 1.1` came out 2–10 % too far apart. By default
-//!   every gap between neighbouring active layers is scaled by their gradients' tilt and
-//!   expressed in each field's gradient-norm units ([`thickness::scaled_offsets`]), which makes
-//!   the gap exact to first order and keeps the order of the layers;
+//!   every gap between neighbouring active layers is scaled by the tilt of the gradients of the
+//!   layers that merge there (the blocks of a local isotonic-regression model,
+//!   [`thickness::contact_blocks`]) and expressed in each field's gradient-norm units
+//!   ([`thickness::scaled_offsets`]): exact to first order, same order of the layers;
 //!   `ProjectionParams::scaled_offsets = false` is eq. 13 as written.
 //! - Vertices keep their own iso-value `ε_v` away from contact; in contact the target is the
 //!   contact surface itself, so neither details nor field error push a layer through another.

@@ -175,7 +175,7 @@ impl<'a> Composer<'a> {
             for k in 0..m {
                 w[k] = self.layers[idx[k]].weight;
             }
-            thickness::scaled_offsets(me, &t[..m], &w[..m], &grads[..m])
+            thickness::scaled_offsets(me, &t[..m], &w[..m], &x[..m], &grads[..m])
         } else {
             thickness::offsets(me, &t[..m])
         };

@@ -768,3 +768,55 @@ proptest::proptest! {
         proptest::prop_assert!((plain - eq13).abs() < 1e-9, "{} vs {}", plain, eq13);
     }
 }
+
+#[test]
+fn three_tilted_planes_merged_keep_the_rule_between_neighbours() {
+    // Three layers deeply inverted (innermost on top), pairwise 25–45° apart, non-unit
+    // gradients and unequal weights: all three merge into one contact run; along the normal of
+    // its plane (Σ w_j ∇f_j), the gaps between neighbouring corrected surfaces, found by root
+    // finding on the composed fields, are the thickness rule (eq. 13 as written: wider).
+    use super::shapes::PlaneField;
+    let dir = |polar: f64, az: f64| {
+        let (p, a) = (polar.to_radians(), az.to_radians());
+        Vec3::new(p.sin() * a.cos(), p.sin() * a.sin(), p.cos())
+    };
+    let normals = [dir(20.0, 0.0), dir(15.0, 120.0), dir(25.0, 240.0)];
+    let fields: Vec<PlaneField> = normals
+        .iter()
+        .zip([0.06, 0.0, -0.06])
+        .zip([1.2, 0.9, 1.05])
+        .map(|((&normal, offset), scale)| PlaneField {
+            normal,
+            offset,
+            scale,
+        })
+        .collect();
+    let (w, t) = ([1.0, 2.5, 0.7], [0.012, 0.008, 0.02]);
+    let g: Vec3 = (0..3).map(|j| normals[j] * (w[j] * fields[j].scale)).sum();
+    let n = g.normalize();
+    for scaled in [true, false] {
+        let layers: Vec<Layer> = (0..3)
+            .map(|j| Layer {
+                field: &fields[j] as &dyn LayerField,
+                weight: w[j],
+                thickness: t[j],
+            })
+            .collect();
+        let composer = Composer::new(&layers).unwrap().with_scaled_offsets(scaled);
+        let r: Vec<f64> = (0..3).map(|i| root_along(&composer, i, &n)).collect();
+        for a in 0..2 {
+            let rule = 0.5 * (t[a] + t[a + 1]);
+            let gap = r[a + 1] - r[a];
+            if scaled {
+                assert!((gap - rule).abs() < 1e-9, "gap {a}: {gap} vs {rule}");
+            } else {
+                // Eq. 13: Σ w / |Σ w ∇f| times the rule.
+                let eq13 = rule * w.iter().sum::<f64>() / g.norm();
+                assert!(
+                    (gap - eq13).abs() < 1e-9 && gap > rule * 1.01,
+                    "{gap} vs {eq13}"
+                );
+            }
+        }
+    }
+}
