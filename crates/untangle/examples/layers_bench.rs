@@ -13,7 +13,12 @@
 //! `LAYERS_BENCH_RELAX_SKIP=x`, `LAYERS_BENCH_NO_ACTIVE_SET=1`, `LAYERS_BENCH_GUARD_INTERVAL=n` set
 //! projection knobs; `LAYERS_BENCH_FIELD_CHECK=1` (with VERBOSE) samples the lower layer's field
 //! at the contact vertices;
-//! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ.
+//! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ;
+//! `LAYERS_BENCH_PLAIN_OFFSETS=1` uses eq. 13's thickness offsets as written (no gradient
+//! scaling, see `implicit::thickness::scaled_offsets`); `LAYERS_BENCH_REPAIR=step,bump` sets the
+//! repair's push step and bump radius; `LAYERS_BENCH_GAP_CHECK=1` (with VERBOSE) rebuilds the
+//! fields and prints, at the contact vertices, the mesh gap against the implicit gap between
+//! the corrected surfaces, split by the length of the merged run.
 use std::path::PathBuf;
 use std::time::Instant;
 use untangle::implicit::layers::Stage;
@@ -433,6 +438,13 @@ fn main() {
                     .map(|p| p.evaluations)
                     .collect::<Vec<_>>(),
                 out.pair_repair
+            );
+            eprintln!(
+                "  unconverged vertices per garment {:?}",
+                out.reports
+                    .iter()
+                    .map(|r| r.unconverged)
+                    .collect::<Vec<_>>()
             );
             eprintln!(
                 "  grid exact fraction per garment {:?}",
