@@ -820,3 +820,41 @@ fn three_tilted_planes_merged_keep_the_rule_between_neighbours() {
         }
     }
 }
+
+#[test]
+fn arcsim_table3_separation_within_two_percent_at_table2_size() {
+    // Issue 5's Table 3 analogue at the Table-2 size (5 layers, subdivision 4, 170k vertices):
+    // where the operators put two neighbouring layers in contact, the two-sided face-to-face
+    // gap is the thickness rule within 2 % — over the contacts the repair of residual crossings
+    // left alone — and the output has no intersection between layers or with the body. With
+    // eq. 13 as written the T-shirt/dress and jacket/T-shirt pairs are 5–7 % off (BENCHMARKS.md).
+    let Some(shared) = shared_data() else { return };
+    let (body, garments) =
+        crate::scenes::outfit::arcsim_outfit(&shared, crate::scenes::outfit::GARMENTS, 4).unwrap();
+    let inputs: Vec<GarmentInput> = garments
+        .iter()
+        .map(|m| GarmentInput {
+            mesh: m,
+            thickness: 0.01,
+            weight: 1.0,
+        })
+        .collect();
+    let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
+    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
+    let v = verify(Some(&body), &refs, &out.positions).unwrap();
+    assert!(v.is_clean(), "{v:?}");
+    let seps = super::layers::measure_separation(Some(&body), &inputs, &out, 0.0);
+    for s in seps.iter().flatten() {
+        let u = s.unrepaired.as_ref().unwrap();
+        eprintln!(
+            "layer {} over {}: unrepaired two-sided mean {:.5} over {} ({:.2} %)",
+            s.layer,
+            s.against,
+            u.mean,
+            u.count,
+            100.0 * u.relative_error
+        );
+        assert!(u.count > 1000, "{u:?}");
+        assert!(u.relative_error < 0.02, "{u:?}");
+    }
+}
