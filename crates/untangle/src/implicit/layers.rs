@@ -417,7 +417,7 @@ pub fn untangle_with_fields(
             thickness: g.thickness,
         });
     }
-    let composer = Composer::new(&layers)?;
+    let composer = Composer::new(&layers)?.with_scaled_offsets(params.projection.scaled_offsets);
     let min_cell = fields
         .iter()
         .map(|f| f.f.cell)
@@ -532,6 +532,7 @@ pub fn untangle_with_fields(
             for (v, (a, b)) in p.iter().zip(&pr.positions).enumerate() {
                 if a != b {
                     pr.moved[v] = true;
+                    pr.repaired[v] = true;
                 }
             }
             pr.positions = p;
@@ -621,7 +622,8 @@ pub fn verify(
 
 /// Measured separation of every garment from the layer directly below it (the previous garment,
 /// or the body for the innermost), over the vertices that ended merged with it (Table 3
-/// analogue). `None` entries: nothing below (innermost garment without body).
+/// analogue; see [`super::separation::Separation`] for the one-sided, face-to-face and
+/// two-sided figures). `None` entries: nothing below (innermost garment without body).
 pub fn measure_separation(
     body: Option<&Mesh>,
     garments: &[GarmentInput],
@@ -649,16 +651,71 @@ pub fn measure_separation(
             let me = offset + k;
             let md = MeshDistance::new(below_pos, below_tris);
             let radius = 3.0 * expected + 0.01;
-            let d: Vec<(f64, f64)> = out.positions[k]
+            let no_repair = vec![false; below_pos.len()];
+            let below_repaired: &[bool] = if k > 0 {
+                &out.projections[k - 1].repaired
+            } else {
+                &no_repair
+            };
+            let pk = &out.projections[k];
+            // (distance, |cos|, untouched by the repair) per contact vertex of this layer.
+            let d: Vec<(f64, f64, bool)> = out.positions[k]
                 .iter()
-                .zip(&out.projections[k].run)
-                .zip(&out.projections[k].active)
-                .filter(|((_, run), &act)| run.0 < me && act & (1 << (me - 1)) != 0)
-                .filter_map(|((p, _), _)| md.distance_and_alignment_within(p, radius))
+                .enumerate()
+                .filter(|&(v, _)| pk.run[v].0 < me && pk.active[v] & (1 << (me - 1)) != 0)
+                .filter_map(|(v, p)| {
+                    let (d, c, t) = md.nearest_within(p, radius)?;
+                    let kept = !pk.repaired[v]
+                        && below_tris[t].iter().all(|&u| !below_repaired[u as usize]);
+                    Some((d, c, kept))
+                })
                 .collect();
-            let face: Vec<f64> = d.iter().filter(|x| x.1 >= 0.99).map(|x| x.0).collect();
+            // The other way: vertices of the layer below merged with this one, to this mesh
+            // (the body never moves and has no run: only the one-sided figure applies).
+            let inner: Option<Vec<(f64, f64, bool)>> = (k > 0).then(|| {
+                let tris = &garments[k].mesh.triangles;
+                let up = MeshDistance::new(&out.positions[k], tris);
+                let (lo, pl) = (me - 1, &out.projections[k - 1]);
+                out.positions[k - 1]
+                    .iter()
+                    .enumerate()
+                    .filter(|&(v, _)| pl.run[v].1 > lo && pl.active[v] & (1 << me) != 0)
+                    .filter_map(|(v, p)| {
+                        let (d, c, t) = up.nearest_within(p, radius)?;
+                        let kept =
+                            !pl.repaired[v] && tris[t].iter().all(|&u| !pk.repaired[u as usize]);
+                        Some((d, c, kept))
+                    })
+                    .collect()
+            });
+            let face = |x: &[(f64, f64, bool)], only_kept: bool| -> Vec<f64> {
+                x.iter()
+                    .filter(|e| e.1 >= 0.99 && (e.2 || !only_kept))
+                    .map(|e| e.0)
+                    .collect()
+            };
+            let inner = inner.unwrap_or_default();
             let mut s = summarize(k, name.clone(), expected, d.iter().map(|x| x.0).collect());
-            s.face = Some(Box::new(summarize(k, name, expected, face)));
+            let both = |only_kept| {
+                Box::new(super::separation::two_sided(
+                    k,
+                    name.clone(),
+                    expected,
+                    &face(&d, only_kept),
+                    &face(&inner, only_kept),
+                ))
+            };
+            s.two_sided = Some(both(false));
+            s.unrepaired = Some(both(true));
+            if k > 0 {
+                s.inner_face = Some(Box::new(summarize(
+                    k,
+                    name.clone(),
+                    expected,
+                    face(&inner, false),
+                )));
+            }
+            s.face = Some(Box::new(summarize(k, name, expected, face(&d, false))));
             Some(s)
         })
         .collect()

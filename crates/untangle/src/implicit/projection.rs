@@ -65,6 +65,7 @@ const FADE_GRADIENT: f64 = 1.0;
 pub struct Composer<'a> {
     layers: &'a [Layer<'a>],
     cache: Vec<RwLock<HashMap<u32, Arc<Operator>>>>,
+    scaled_offsets: bool,
 }
 
 /// One configuration's corrected value: value, gradient, run, margin.
@@ -89,7 +90,18 @@ impl<'a> Composer<'a> {
             cache: (0..layers.len())
                 .map(|_| RwLock::new(HashMap::new()))
                 .collect(),
+            scaled_offsets: true,
         })
+    }
+
+    /// Whether the thickness offsets of eq. 13 are scaled to the fields' gradients at the point
+    /// (default `true`; see [`thickness::scaled_offsets`]): `false` is the paper's literal eq.
+    /// 13, whose gap between two layers in contact is the thickness rule divided by the norm of
+    /// their (weighted mean) field gradient, e.g. 10 % too wide where the two garments' surfaces
+    /// meet at 50°.
+    pub fn with_scaled_offsets(mut self, on: bool) -> Self {
+        self.scaled_offsets = on;
+        self
     }
 
     /// Number of layers.
@@ -158,7 +170,15 @@ impl<'a> Composer<'a> {
             return (x[0], grads[0], (i, i), MARGIN_CAP);
         }
         let op = self.operator(i, mask);
-        let off = thickness::offsets(me, &t[..m]);
+        let off = if self.scaled_offsets {
+            let mut w = [0.0; MAX_LAYERS];
+            for k in 0..m {
+                w[k] = self.layers[idx[k]].weight;
+            }
+            thickness::scaled_offsets(me, &t[..m], &w[..m], &x[..m], &grads[..m])
+        } else {
+            thickness::offsets(me, &t[..m])
+        };
         for k in 0..m {
             x[k] += off[k];
         }
@@ -309,6 +329,9 @@ pub struct ProjectionParams {
     /// Passes between two checks of the self-intersection guard (moves since the last check
     /// are undone where they made the garment intersect itself anew).
     pub self_guard_interval: usize,
+    /// Scale the thickness offsets by the fields' gradient norms (see
+    /// [`Composer::with_scaled_offsets`]); used by [`super::layers::untangle_layers`].
+    pub scaled_offsets: bool,
 }
 
 impl Default for ProjectionParams {
@@ -326,6 +349,7 @@ impl Default for ProjectionParams {
             relax_skip: 10.0,
             prevent_self_intersections: false,
             self_guard_interval: 8,
+            scaled_offsets: true,
         }
     }
 }
@@ -342,6 +366,9 @@ pub struct LayerProjection {
     pub iso: Vec<f64>,
     /// Whether a vertex moved.
     pub moved: Vec<bool>,
+    /// Whether the repair of residual crossings moved the vertex afterwards (see
+    /// [`super::repair`]; all `false` out of the projection).
+    pub repaired: Vec<bool>,
     /// Whether a vertex ended in contact (merged with another layer), and the run.
     pub run: Vec<(usize, usize)>,
     /// Per vertex, the layers that influence it at the end (bit `j`: layer `j`, eq. 12).
@@ -626,6 +653,7 @@ pub fn project_from(
     LayerProjection {
         positions: pos,
         iso: iso.to_vec(),
+        repaired: vec![false; moved.len()],
         moved,
         run,
         active,

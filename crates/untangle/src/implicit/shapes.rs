@@ -127,3 +127,27 @@ impl LayerField for CylinderField {
         })
     }
 }
+
+/// A linear field `scale · (n · p − offset)` (a plane whose field has gradient norm `scale`, so
+/// not a distance field unless `scale = 1`), influential everywhere: the exact local model of
+/// two layers meeting at an angle, used to check the thickness rule (Sec. 6.2).
+#[derive(Clone, Copy, Debug)]
+pub struct PlaneField {
+    /// Unit normal.
+    pub normal: Vec3,
+    /// Signed distance of the plane from the origin along `normal`.
+    pub offset: f64,
+    /// Gradient norm.
+    pub scale: f64,
+}
+
+impl LayerField for PlaneField {
+    fn sample(&self, p: &Vec3) -> Option<FieldSample> {
+        Some(FieldSample {
+            value: self.scale * (self.normal.dot(p) - self.offset),
+            gradient: self.normal * self.scale,
+            fade: 0.0,
+            fade_gradient: Vec3::zeros(),
+        })
+    }
+}

@@ -655,3 +655,206 @@ fn arcsim_self_guard_adds_no_self_intersection() {
         "{v_on:?} vs input {v0:?}"
     );
 }
+
+/// Where the corrected field of layer `i` crosses zero on the line `s ↦ s·dir`, `s ∈ [-1, 1]`
+/// (scan, then bisection): the position of its corrected surface along `dir`.
+fn root_along(composer: &Composer, i: usize, dir: &Vec3) -> f64 {
+    let f = |s: f64| composer.evaluate(i, &(dir * s)).unwrap().value;
+    let n = 2000;
+    let mut a = -1.0;
+    let mut fa = f(a);
+    for k in 1..=n {
+        let b = -1.0 + 2.0 * k as f64 / n as f64;
+        let fb = f(b);
+        if (fa <= 0.0) != (fb <= 0.0) {
+            let (mut lo, mut hi) = (a, b);
+            for _ in 0..80 {
+                let m = 0.5 * (lo + hi);
+                if (f(m) <= 0.0) == (fa <= 0.0) {
+                    lo = m;
+                } else {
+                    hi = m;
+                }
+            }
+            return 0.5 * (lo + hi);
+        }
+        (a, fa) = (b, fb);
+    }
+    panic!("layer {i}: no zero on the line");
+}
+
+/// Two crossing planes (inner layer above the outer one at the origin: an inversion deeper than
+/// the thickness) with gradient norms `sa`, `sb` and normals `angle` apart; returns the gap
+/// between their corrected surfaces along the normal of the contact plane, found by root
+/// finding on the composed fields (oracle: the thickness rule), and the gap eq. 13 predicts.
+fn plane_gap(
+    angle: f64,
+    azimuth: f64,
+    s: [f64; 2],
+    w: [f64; 2],
+    t: [f64; 2],
+    scaled: bool,
+) -> (f64, f64) {
+    use super::shapes::PlaneField;
+    let tilt = |a: f64| Vec3::new(a.sin() * azimuth.cos(), a.sin() * azimuth.sin(), a.cos());
+    let na = tilt(0.5 * angle);
+    let nb = tilt(-0.5 * angle);
+    let fields = [
+        PlaneField {
+            normal: na,
+            offset: 0.05,
+            scale: s[0],
+        },
+        PlaneField {
+            normal: nb,
+            offset: -0.05,
+            scale: s[1],
+        },
+    ];
+    let layers: Vec<Layer> = (0..2)
+        .map(|k| Layer {
+            field: &fields[k] as &dyn LayerField,
+            weight: w[k],
+            thickness: t[k],
+        })
+        .collect();
+    let composer = Composer::new(&layers).unwrap().with_scaled_offsets(scaled);
+    // Contact plane: w_a f̃_a + w_b f̃_b = 0, normal ∝ w_a ∇f_a + w_b ∇f_b.
+    let g = na * (w[0] * s[0]) + nb * (w[1] * s[1]);
+    let dir = g.normalize();
+    let (ra, rb) = (
+        root_along(&composer, 0, &dir),
+        root_along(&composer, 1, &dir),
+    );
+    let delta = 0.5 * (t[0] + t[1]);
+    let eq13 = delta * (w[0] + w[1]) / g.norm();
+    (rb - ra, eq13)
+}
+
+#[test]
+fn scaled_offsets_give_the_thickness_rule_between_tilted_planes() {
+    // Unit distance fields, parallel: both versions give the rule exactly.
+    let (gap, eq13) = plane_gap(0.0, 0.0, [1.0, 1.0], [1.0, 1.0], [0.01, 0.01], true);
+    assert!(
+        (gap - 0.01).abs() < 1e-9 && (eq13 - 0.01).abs() < 1e-12,
+        "{gap}"
+    );
+    // Surfaces 50° apart (as the T-shirt and the dress at their contact): eq. 13 as written
+    // gives t / cos 25° (10 % wide), the scaled offsets the rule.
+    let a = 50f64.to_radians();
+    let (gap, eq13) = plane_gap(a, 0.3, [1.0, 1.0], [1.0, 1.0], [0.01, 0.01], true);
+    assert!((gap - 0.01).abs() < 1e-9, "{gap}");
+    let (plain, _) = plane_gap(a, 0.3, [1.0, 1.0], [1.0, 1.0], [0.01, 0.01], false);
+    assert!((plain - eq13).abs() < 1e-9 && (eq13 - 0.01 / (0.5 * a).cos()).abs() < 1e-12);
+    // Non-distance fields (gradient norms 1.3 and 0.8), unequal weights and thicknesses.
+    let (gap, _) = plane_gap(0.4, 1.0, [1.3, 0.8], [2.0, 1.0], [0.02, 0.006], true);
+    assert!((gap - 0.013).abs() < 1e-9, "{gap}");
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    #[test]
+    fn tilted_planes_keep_the_thickness_rule(
+        angle in 0.0f64..1.0, azimuth in 0.0f64..6.3,
+        sa in 0.6f64..1.6, sb in 0.6f64..1.6,
+        wa in 0.3f64..3.0, wb in 0.3f64..3.0,
+        ta in 0.0f64..0.02, tb in 0.001f64..0.02,
+    ) {
+        let (gap, eq13) = plane_gap(angle, azimuth, [sa, sb], [wa, wb], [ta, tb], true);
+        let rule = 0.5 * (ta + tb);
+        proptest::prop_assert!((gap - rule).abs() < 1e-9 * (1.0 + rule), "{} vs {}", gap, rule);
+        // Eq. 13 as written: the gap the contact plane's gradient predicts.
+        let (plain, _) = plane_gap(angle, azimuth, [sa, sb], [wa, wb], [ta, tb], false);
+        proptest::prop_assert!((plain - eq13).abs() < 1e-9, "{} vs {}", plain, eq13);
+    }
+}
+
+#[test]
+fn three_tilted_planes_merged_keep_the_rule_between_neighbours() {
+    // Three layers deeply inverted (innermost on top), pairwise 25–45° apart, non-unit
+    // gradients and unequal weights: all three merge into one contact run; along the normal of
+    // its plane (Σ w_j ∇f_j), the gaps between neighbouring corrected surfaces, found by root
+    // finding on the composed fields, are the thickness rule (eq. 13 as written: wider).
+    use super::shapes::PlaneField;
+    let dir = |polar: f64, az: f64| {
+        let (p, a) = (polar.to_radians(), az.to_radians());
+        Vec3::new(p.sin() * a.cos(), p.sin() * a.sin(), p.cos())
+    };
+    let normals = [dir(20.0, 0.0), dir(15.0, 120.0), dir(25.0, 240.0)];
+    let fields: Vec<PlaneField> = normals
+        .iter()
+        .zip([0.06, 0.0, -0.06])
+        .zip([1.2, 0.9, 1.05])
+        .map(|((&normal, offset), scale)| PlaneField {
+            normal,
+            offset,
+            scale,
+        })
+        .collect();
+    let (w, t) = ([1.0, 2.5, 0.7], [0.012, 0.008, 0.02]);
+    let g: Vec3 = (0..3).map(|j| normals[j] * (w[j] * fields[j].scale)).sum();
+    let n = g.normalize();
+    for scaled in [true, false] {
+        let layers: Vec<Layer> = (0..3)
+            .map(|j| Layer {
+                field: &fields[j] as &dyn LayerField,
+                weight: w[j],
+                thickness: t[j],
+            })
+            .collect();
+        let composer = Composer::new(&layers).unwrap().with_scaled_offsets(scaled);
+        let r: Vec<f64> = (0..3).map(|i| root_along(&composer, i, &n)).collect();
+        for a in 0..2 {
+            let rule = 0.5 * (t[a] + t[a + 1]);
+            let gap = r[a + 1] - r[a];
+            if scaled {
+                assert!((gap - rule).abs() < 1e-9, "gap {a}: {gap} vs {rule}");
+            } else {
+                // Eq. 13: Σ w / |Σ w ∇f| times the rule.
+                let eq13 = rule * w.iter().sum::<f64>() / g.norm();
+                assert!(
+                    (gap - eq13).abs() < 1e-9 && gap > rule * 1.01,
+                    "{gap} vs {eq13}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn arcsim_table3_separation_within_two_percent_at_table2_size() {
+    // Issue 5's Table 3 analogue at the Table-2 size (5 layers, subdivision 4, 170k vertices):
+    // where the operators put two neighbouring layers in contact, the two-sided face-to-face
+    // gap is the thickness rule within 2 % — over the contacts the repair of residual crossings
+    // left alone — and the output has no intersection between layers or with the body. With
+    // eq. 13 as written the T-shirt/dress and jacket/T-shirt pairs are 5–7 % off (BENCHMARKS.md).
+    let Some(shared) = shared_data() else { return };
+    let (body, garments) =
+        crate::scenes::outfit::arcsim_outfit(&shared, crate::scenes::outfit::GARMENTS, 4).unwrap();
+    let inputs: Vec<GarmentInput> = garments
+        .iter()
+        .map(|m| GarmentInput {
+            mesh: m,
+            thickness: 0.01,
+            weight: 1.0,
+        })
+        .collect();
+    let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
+    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
+    let v = verify(Some(&body), &refs, &out.positions).unwrap();
+    assert!(v.is_clean(), "{v:?}");
+    let seps = super::layers::measure_separation(Some(&body), &inputs, &out, 0.0);
+    for s in seps.iter().flatten() {
+        let u = s.unrepaired.as_ref().unwrap();
+        eprintln!(
+            "layer {} over {}: unrepaired two-sided mean {:.5} over {} ({:.2} %)",
+            s.layer,
+            s.against,
+            u.mean,
+            u.count,
+            100.0 * u.relative_error
+        );
+        assert!(u.count > 1000, "{u:?}");
+        assert!(u.relative_error < 0.02, "{u:?}");
+    }
+}

@@ -6,6 +6,7 @@
 //! full thickness of every active layer between them.
 
 use super::operators::{FieldVec, MAX_LAYERS};
+use crate::geom::Vec3;
 
 /// The offsets `f̃_j − f_j` of eq. 13 for the layer at position `me` of the active layers, whose
 /// thicknesses (in order, innermost first) are `t`.
@@ -20,6 +21,128 @@ pub fn offsets(me: usize, t: &[f64]) -> FieldVec {
     for j in (0..me).rev() {
         out[j] = -(acc + 0.5 * t[me] + 0.5 * t[j]);
         acc += t[j];
+    }
+    out
+}
+
+/// Bounds on the gradient norm used by [`scaled_offsets`]: a degenerate gradient (e.g. at a
+/// grid's far-field fill or a medial point) must not cancel or blow up the thickness.
+pub const GRADIENT_NORM_RANGE: (f64, f64) = (0.25, 4.0);
+
+/// Smallest tilt factor of [`scaled_offsets`] (where two layers' gradients point apart, e.g.
+/// far from both surfaces, the offsets are not shrunk below half).
+pub const MIN_TILT: f64 = 0.5;
+
+/// The layers that a locally linear model of the fields merges into one contact surface at the
+/// point: per active layer, the index of the first layer of its *block*.
+///
+/// Along the normal, layer `j`'s surface lies at `a_j = −f_j / |∇f_j|` from the point; with the
+/// thickness rule, the untangled positions `b_j` must satisfy `b_j ≥ b_{j−1} + δ_{j−1}`. With
+/// `c_j = a_j − Σ_{k<j} δ_k` that is the weighted isotonic regression of `c` (weights `w_j`,
+/// the body's infinite weight pins its block), solved by pooling adjacent violators; its
+/// blocks are the runs of layers that meet (the operators' runs of Sec. 5 for parallel distance
+/// fields). Depends on the fields at the point only, not on the layer being evaluated.
+pub fn contact_blocks(x: &[f64], norm: &[f64], t: &[f64], w: &[f64]) -> [usize; MAX_LAYERS] {
+    let m = t.len();
+    // Blocks: (first layer, weight sum, weighted sum, pinned value).
+    let mut blocks: Vec<(usize, f64, f64, Option<f64>)> = Vec::with_capacity(m);
+    let mut shift = 0.0;
+    let value = |b: &(usize, f64, f64, Option<f64>)| b.3.unwrap_or(b.2 / b.1);
+    for j in 0..m {
+        if j > 0 {
+            shift += 0.5 * (t[j - 1] + t[j]);
+        }
+        let c = -x[j] / norm[j] - shift;
+        let mut b = if w[j].is_infinite() {
+            (j, 0.0, 0.0, Some(c))
+        } else {
+            (j, w[j], w[j] * c, None)
+        };
+        while let Some(prev) = blocks.last() {
+            if value(prev) <= value(&b) {
+                break;
+            }
+            let prev = blocks.pop().expect("non-empty");
+            b = (prev.0, prev.1 + b.1, prev.2 + b.2, prev.3.or(b.3));
+        }
+        blocks.push(b);
+    }
+    let mut out = [0usize; MAX_LAYERS];
+    for (k, b) in blocks.iter().enumerate() {
+        let end = blocks.get(k + 1).map_or(m, |n| n.0);
+        for o in out.iter_mut().take(end).skip(b.0) {
+            *o = b.0;
+        }
+    }
+    out
+}
+
+/// The offsets of eq. 13 made exact to first order for fields that are not distance fields and
+/// layers whose surfaces are not parallel (a deviation from Sec. 6.2, see below).
+///
+/// `me`, `t` as in [`offsets`]; `w` the weights (`∞` for the body), `x` the field values and
+/// `g` the field gradients of the active layers at the point. Eq. 13 adds the same field offset
+/// to every layer; the layers of a run `R` that end in contact meet on the plane
+/// `Σ_R w_j f̃_j = 0` (Sec. 5), so the gap between two neighbours' corrected surfaces there is
+/// `δ_a Σ_R w_j / |Σ_R w_j ∇f_j|` with `δ_a = t_a/2 + t_{a+1}/2`: it equals `δ_a` only for
+/// unit, parallel gradients (the approximation whose error Table 3 reports). Here the part of
+/// the offset that separates `a` from `a+1` is, in the units of layer `j`, `δ_a k_a |∇f_j|`
+/// with the *tilt* `k_a = |Σ_B w_j ∇f_j| / Σ_B w_j |∇f_j|` over the block `B` of
+/// [`contact_blocks`] holding `a` and `a+1` (over the pair when they are in different blocks;
+/// 1 when the body, of infinite weight, is in it: its plane is `f_0` alone), which makes the
+/// gap exactly `δ_a` for locally linear fields. Every quantity depends on the fields at the
+/// point only, not on the layer being evaluated, so seen from layer `i+1` every field is shifted
+/// by the same non-negative amounts `δ_i k_i |∇f_j|` as seen from layer `i`, as with eq. 13:
+/// the layers stay in order. Gradient norms are clamped to [`GRADIENT_NORM_RANGE`], tilts to
+/// `[MIN_TILT, 1]` (a clamp only widens the gap).
+pub fn scaled_offsets(me: usize, t: &[f64], w: &[f64], x: &[f64], g: &[Vec3]) -> FieldVec {
+    let m = t.len();
+    let (lo, hi) = GRADIENT_NORM_RANGE;
+    let mut norm = [0.0; MAX_LAYERS];
+    for j in 0..m {
+        norm[j] = g[j].norm().clamp(lo, hi);
+    }
+    let block = contact_blocks(x, &norm[..m], t, w);
+    // Over the finite-weight layers of the range (the body's own gap is 1, see below).
+    let tilt = |r: std::ops::Range<usize>| {
+        let s: Vec3 = r
+            .clone()
+            .filter(|&j| w[j].is_finite())
+            .map(|j| g[j] * w[j])
+            .sum();
+        let n: f64 = r
+            .filter(|&j| w[j].is_finite())
+            .map(|j| w[j] * norm[j])
+            .sum();
+        if n > 0.0 {
+            (s.norm() / n).clamp(MIN_TILT, 1.0)
+        } else {
+            1.0
+        }
+    };
+    // Field-free part of each gap: δ_a k_a between active layers a and a+1.
+    let mut gap = [0.0; MAX_LAYERS];
+    for a in 0..m.saturating_sub(1) {
+        let k = if w[a].is_infinite() || w[a + 1].is_infinite() {
+            1.0
+        } else if block[a] == block[a + 1] {
+            let end = (a + 1..m).find(|&j| block[j] != block[a]).unwrap_or(m);
+            tilt(block[a]..end)
+        } else {
+            tilt(a..a + 2)
+        };
+        gap[a] = (0.5 * t[a] + 0.5 * t[a + 1]) * k;
+    }
+    let mut out = [0.0; MAX_LAYERS];
+    let mut acc = 0.0;
+    for j in me + 1..m {
+        acc += gap[j - 1];
+        out[j] = acc * norm[j];
+    }
+    let mut acc = 0.0;
+    for j in (0..me).rev() {
+        acc += gap[j];
+        out[j] = -acc * norm[j];
     }
     out
 }
@@ -60,5 +183,107 @@ mod tests {
                 assert!(j >= me || o[j] <= 0.0);
             }
         }
+    }
+
+    #[test]
+    fn scaled_offsets_reduce_to_eq13_for_unit_parallel_gradients() {
+        let t = [0.0, 1.0, 2.0, 4.0, 8.0];
+        let w = [f64::INFINITY, 1.0, 2.0, 0.5, 3.0];
+        let g = [Vec3::z(); 5];
+        for me in 0..5 {
+            let (a, b) = (offsets(me, &t), scaled_offsets(me, &t, &w, &[0.0; 5], &g));
+            for j in 0..5 {
+                assert!(
+                    (a[j] - b[j]).abs() < 1e-12,
+                    "{me} {j}: {} vs {}",
+                    a[j],
+                    b[j]
+                );
+            }
+        }
+        // Gradient norm 2 everywhere: twice the field offsets (same geometric gaps).
+        let g2 = [Vec3::z() * 2.0; 5];
+        let b = scaled_offsets(2, &t, &w, &[0.0; 5], &g2);
+        let a = offsets(2, &t);
+        for j in 0..5 {
+            assert!((b[j] - 2.0 * a[j]).abs() < 1e-12);
+        }
+        // Seen from the next layer out, every field is shifted by the same non-negative amount
+        // per gap (nesting kept, Sec. 5): here for orthogonal unit gradients (tilt 1/√2).
+        let g3 = [Vec3::x(), Vec3::y(), Vec3::x(), Vec3::y(), Vec3::x()];
+        let x3 = [0.3, -0.2, 0.1, 0.5, -0.4];
+        for me in 0..4 {
+            let (a, b) = (
+                scaled_offsets(me, &t, &w, &x3, &g3),
+                scaled_offsets(me + 1, &t, &w, &x3, &g3),
+            );
+            for j in 0..5 {
+                assert!(a[j] - b[j] >= 0.0);
+                assert!((a[j] - b[j] - (a[0] - b[0])).abs() < 1e-12);
+            }
+        }
+    }
+
+    /// Brute force isotonic regression: every split into contiguous blocks, block values the
+    /// weighted means, the feasible (non-decreasing) split of least weighted squared error.
+    fn blocks_brute(c: &[f64], w: &[f64]) -> Vec<usize> {
+        let m = c.len();
+        let mut best = (f64::INFINITY, vec![]);
+        for cuts in 0u32..(1 << (m - 1)) {
+            let mut first = vec![0usize; m];
+            let mut vals = vec![0.0; m];
+            let mut start = 0;
+            for j in 0..m {
+                if j == m - 1 || cuts & (1 << j) != 0 {
+                    let sw: f64 = w[start..=j].iter().sum();
+                    let v = (start..=j).map(|k| w[k] * c[k]).sum::<f64>() / sw;
+                    for k in start..=j {
+                        first[k] = start;
+                        vals[k] = v;
+                    }
+                    start = j + 1;
+                }
+            }
+            if vals.windows(2).any(|p| p[1] < p[0]) {
+                continue;
+            }
+            let e: f64 = (0..m).map(|k| w[k] * (vals[k] - c[k]).powi(2)).sum();
+            if e < best.0 - 1e-12 {
+                best = (e, first);
+            }
+        }
+        best.1
+    }
+
+    #[test]
+    fn contact_blocks_match_brute_force_isotonic_regression() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..500 {
+            let m = rng.random_range(1..=7);
+            let x: Vec<f64> = (0..m).map(|_| rng.random_range(-0.1..0.1)).collect();
+            let norm: Vec<f64> = (0..m).map(|_| rng.random_range(0.7..1.4)).collect();
+            let t: Vec<f64> = (0..m).map(|_| rng.random_range(0.0..0.02)).collect();
+            let w: Vec<f64> = (0..m).map(|_| rng.random_range(0.3..3.0)).collect();
+            let mut shift = 0.0;
+            let c: Vec<f64> = (0..m)
+                .map(|j| {
+                    if j > 0 {
+                        shift += 0.5 * (t[j - 1] + t[j]);
+                    }
+                    -x[j] / norm[j] - shift
+                })
+                .collect();
+            let got = contact_blocks(&x, &norm, &t, &w);
+            assert_eq!(&got[..m], &blocks_brute(&c, &w)[..], "{c:?} {w:?}");
+        }
+        // The body (infinite weight) pins its block: a garment below its surface joins it.
+        let b = contact_blocks(
+            &[0.0, 0.02, -0.05],
+            &[1.0; 3],
+            &[0.0, 0.01, 0.01],
+            &[f64::INFINITY, 1.0, 1.0],
+        );
+        assert_eq!(&b[..3], &[0, 0, 2]);
     }
 }
