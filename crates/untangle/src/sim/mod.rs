@@ -19,6 +19,7 @@
 //! Results are bit-identical for any number of threads.
 
 pub mod amg;
+pub mod cholesky;
 pub mod collision;
 pub mod contact;
 pub mod forces;
