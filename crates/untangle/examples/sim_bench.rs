@@ -111,23 +111,16 @@ fn main() {
     }
 }
 
-/// `SIM_BENCH_PRECONDITIONER=multigrid|twolevel|cholesky` measures that CG preconditioner
-/// instead of the default (`SIM_BENCH_MULTIGRID=1`: multigrid, as before).
+/// `SIM_BENCH_MULTIGRID=1` measures the multigrid CG preconditioner instead of the default.
 fn params() -> SimParams {
-    use untangle::sim::CgPreconditioner;
-    let chosen = match std::env::var("SIM_BENCH_PRECONDITIONER").as_deref() {
-        Ok("multigrid") => Some(CgPreconditioner::Multigrid),
-        Ok("twolevel") => Some(CgPreconditioner::TwoLevel),
-        Ok("cholesky") => Some(CgPreconditioner::Cholesky),
-        Ok(other) => panic!("SIM_BENCH_PRECONDITIONER: unknown {other}"),
-        Err(_) if std::env::var("SIM_BENCH_MULTIGRID").is_ok() => Some(CgPreconditioner::Multigrid),
-        Err(_) => None,
-    };
-    let defaults = SimParams::default();
     SimParams {
         gravity: Vec3::new(0.0, 0.0, -9.81),
-        preconditioner: chosen.unwrap_or(defaults.preconditioner),
-        ..defaults
+        preconditioner: if std::env::var("SIM_BENCH_MULTIGRID").is_ok() {
+            untangle::sim::CgPreconditioner::Multigrid
+        } else {
+            untangle::sim::CgPreconditioner::TwoLevel
+        },
+        ..SimParams::default()
     }
 }
 

@@ -19,7 +19,6 @@
 //! Results are bit-identical for any number of threads.
 
 pub mod amg;
-pub mod cholesky;
 pub mod collision;
 pub mod contact;
 pub mod forces;

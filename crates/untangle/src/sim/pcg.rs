@@ -17,7 +17,6 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::amg::AmgPreconditioner;
-use super::cholesky::BlockCholesky;
 use super::sparse::{dot, BsrMatrix, BsrPattern, CHUNK};
 use crate::geom::Vec3;
 
@@ -188,8 +187,6 @@ pub enum Preconditioner<'a> {
     BlockJacobi(Option<&'a CoarseLevel<'a>>),
     /// One smoothed-aggregation multigrid V-cycle ([`crate::sim::amg`]).
     Amg(&'a AmgPreconditioner<'a>),
-    /// A sparse Cholesky factor of this or an earlier filtered matrix ([`crate::sim::cholesky`]).
-    Cholesky(&'a BlockCholesky),
 }
 
 /// Stopping rule of the solve.
@@ -231,10 +228,9 @@ pub fn solve(
     settings: PcgSettings,
     preconditioner: Preconditioner,
 ) -> PcgResult {
-    let (coarse, amg, chol) = match preconditioner {
-        Preconditioner::BlockJacobi(c) => (c, None, None),
-        Preconditioner::Amg(m) => (None, Some(m), None),
-        Preconditioner::Cholesky(f) => (None, None, Some(f)),
+    let (coarse, amg) = match preconditioner {
+        Preconditioner::BlockJacobi(c) => (c, None),
+        Preconditioner::Amg(m) => (None, Some(m)),
     };
     let n = b.len();
     let pinv: Vec<Matrix3<f64>> = (0..n)
@@ -255,10 +251,6 @@ pub fn solve(
     let precond = |r: &[Vec3], out: &mut [Vec3]| {
         if let Some(m) = amg {
             m.apply(r, out);
-            return;
-        }
-        if let Some(f) = chol {
-            f.apply(r, filter, out);
             return;
         }
         out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
@@ -322,7 +314,7 @@ pub fn solve(
         }
         let alpha = delta_new / cq;
         // x += alpha c, r -= alpha q, s = filtered block-Jacobi of r, and r . s.
-        let mut rs_dot: f64 = if amg.is_some() || chol.is_some() {
+        let mut rs_dot: f64 = if let Some(m) = amg {
             x.par_chunks_mut(CHUNK)
                 .zip(r.par_chunks_mut(CHUNK))
                 .enumerate()
@@ -333,11 +325,7 @@ pub fn solve(
                         rs[k] -= alpha * q[i];
                     }
                 });
-            match (amg, chol) {
-                (Some(m), _) => m.apply(&r, &mut s),
-                (None, Some(f)) => f.apply(&r, filter, &mut s),
-                (None, None) => unreachable!("checked above"),
-            }
+            m.apply(&r, &mut s)
         } else {
             x.par_chunks_mut(CHUNK)
                 .zip(r.par_chunks_mut(CHUNK))

@@ -13,7 +13,6 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::amg::{Amg, AmgSettings};
-use super::cholesky::BlockCholesky;
 use super::collision::{self, broad::BroadPhase, CollisionSettings, Scene};
 use super::collision::{Pair, PairKind};
 use super::contact::{self, ContactFinder};
@@ -44,12 +43,6 @@ const AMG_REBUILD_FACTOR: usize = 2;
 const AMG_REBUILD_SLACK: usize = 6;
 /// Steps after which the hierarchy is rebuilt anyway.
 const AMG_MAX_AGE: u64 = 50;
-/// The Cholesky preconditioner is refactorised when a solve needs more than this many
-/// iterations (the factor of the current matrix needs ~1-3; an older one more as the matrix
-/// drifts). A factorisation costs about as much as this many CG iterations on a garment.
-const CHOLESKY_REFACTOR_ITERATIONS: usize = 12;
-/// Steps after which the factor is renewed anyway.
-const CHOLESKY_MAX_AGE: u64 = 20;
 /// Largest friction damping per step as a multiple of the vertex mass (sticking).
 const FRICTION_CAP: f64 = 100.0;
 
@@ -112,9 +105,6 @@ pub enum CgPreconditioner {
     Multigrid,
     /// Block-Jacobi plus an additive 64-aggregate coarse grid; the default.
     TwoLevel,
-    /// A sparse Cholesky factorisation of the filtered matrix ([`crate::sim::cholesky`]),
-    /// reused across steps and renewed when CG needs more than a few iterations.
-    Cholesky,
 }
 
 impl Default for SimParams {
@@ -223,12 +213,6 @@ pub struct Simulator {
     amg_built: Option<(usize, u64)>,
     /// Iterations of the last multigrid solve.
     amg_last: usize,
-    /// Sparse Cholesky preconditioner (symbolic analysis on first use).
-    cholesky: Option<BlockCholesky>,
-    /// Iterations of the last solve preconditioned by the Cholesky factor, and the step of the
-    /// factorisation.
-    cholesky_last: usize,
-    cholesky_at: u64,
     /// Velocity change of the previous step: the initial guess of CG.
     dv_prev: Vec<Vec3>,
     steps: u64,
@@ -333,9 +317,6 @@ impl Simulator {
             amg: Amg::new(AmgSettings::default()),
             amg_built: None,
             amg_last: 0,
-            cholesky: None,
-            cholesky_last: 0,
-            cholesky_at: 0,
             resting: Vec::new(),
             contact_impulse: vec![0.0; n],
             dv_prev: vec![Vec3::zeros(); n],
@@ -733,26 +714,7 @@ impl Simulator {
             }
             let multigrid =
                 p.preconditioner == CgPreconditioner::Multigrid && self.aggregation.is_some();
-            let use_cholesky =
-                p.preconditioner == CgPreconditioner::Cholesky && self.aggregation.is_some();
-            if round == 0 && use_cholesky {
-                if !self
-                    .cholesky
-                    .as_ref()
-                    .is_some_and(|c| c.is_for(&self.pattern))
-                {
-                    self.cholesky = BlockCholesky::new(&self.pattern);
-                }
-                if let Some(ch) = &mut self.cholesky {
-                    let stale = !ch.is_factored()
-                        || self.cholesky_last > CHOLESKY_REFACTOR_ITERATIONS
-                        || self.steps >= self.cholesky_at + CHOLESKY_MAX_AGE;
-                    if stale {
-                        ch.factor(&self.pattern, &a, &fl);
-                        self.cholesky_at = self.steps;
-                    }
-                }
-            } else if round == 0 && multigrid {
+            if round == 0 && multigrid {
                 let stale = match self.amg_built {
                     None => true,
                     Some((first, at)) => {
@@ -777,14 +739,9 @@ impl Simulator {
             } else {
                 None
             };
-            let factor = self
-                .cholesky
-                .as_ref()
-                .filter(|c| use_cholesky && c.is_factored());
-            let preconditioner = match (&mg, factor) {
-                (Some(m), _) => pcg::Preconditioner::Amg(m),
-                (None, Some(f)) => pcg::Preconditioner::Cholesky(f),
-                (None, None) => pcg::Preconditioner::BlockJacobi(coarse.as_ref()),
+            let preconditioner = match &mg {
+                Some(m) => pcg::Preconditioner::Amg(m),
+                None => pcg::Preconditioner::BlockJacobi(coarse.as_ref()),
             };
             let mut r = pcg::solve(
                 &self.pattern,
@@ -796,9 +753,6 @@ impl Simulator {
                 settings,
                 preconditioner,
             );
-            if factor.is_some() && round == 0 {
-                self.cholesky_last = r.iterations;
-            }
             if mg.is_some() {
                 if round == 0 {
                     self.amg_last = r.iterations;
