@@ -21,7 +21,6 @@
 pub mod amg;
 pub mod collision;
 pub mod contact;
-pub mod envelope;
 pub mod forces;
 pub mod obstacle;
 pub mod pcg;

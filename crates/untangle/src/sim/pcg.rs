@@ -17,7 +17,6 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::amg::AmgPreconditioner;
-use super::envelope::{reverse_cuthill_mckee, EnvelopeCholesky};
 use super::sparse::{dot, BsrMatrix, BsrPattern, CHUNK};
 use crate::geom::Vec3;
 
@@ -41,15 +40,6 @@ impl Filter {
             Filter::Fixed => Vec3::zeros(),
             Filter::Normal(n) => v - n * n.dot(&v),
         }
-    }
-}
-
-/// The projection matrix `S_i` of a filter.
-fn projection(f: &Filter) -> Matrix3<f64> {
-    match f {
-        Filter::Free => Matrix3::identity(),
-        Filter::Fixed => Matrix3::zeros(),
-        Filter::Normal(nn) => Matrix3::identity() - nn * nn.transpose(),
     }
 }
 
@@ -101,48 +91,19 @@ impl Aggregation {
     }
 }
 
-/// Coarse problems up to this many unknowns (64 aggregates) are factorised densely; larger ones
-/// by an envelope Cholesky factor in reverse Cuthill-McKee order of the aggregates
-/// ([`crate::sim::envelope`]): a coarse grid of a few hundred surface aggregates is banded in
-/// that order, and its dense factorisation would cost more than the CG iterations it saves.
-pub const DENSE_COARSE_MAX: usize = 192;
-
 /// The factorised coarse matrix `P^T S A S P` (3 unknowns per aggregate, `S` the filter's
 /// projection). Any SPD coarse matrix gives a valid preconditioner, so one factorisation can
 /// serve several solves whose matrices or filters differ slightly.
 pub struct CoarseLevel<'a> {
     agg: &'a Aggregation,
-    solver: CoarseSolver,
-}
-
-enum CoarseSolver {
-    Dense(nalgebra::linalg::Cholesky<f64, nalgebra::Dyn>),
-    /// Envelope factor with the aggregates in RCM order: aggregate `a` is unknowns
-    /// `3 position[a] ..`.
-    Envelope {
-        factor: EnvelopeCholesky,
-        position: Vec<u32>,
-    },
+    chol: nalgebra::linalg::Cholesky<f64, nalgebra::Dyn>,
 }
 
 impl<'a> CoarseLevel<'a> {
     /// Assembles and factorises the coarse matrix of `a` under `filter` (the pair couplings
     /// outside the pattern are left out: the rest is still SPD); `None` when the aggregation is
-    /// empty or the factorisation fails. Dense up to [`DENSE_COARSE_MAX`] unknowns, else banded.
+    /// empty or the factorisation fails.
     pub fn new(
-        agg: &'a Aggregation,
-        pattern: &BsrPattern,
-        a: &BsrMatrix,
-        filter: &[Filter],
-    ) -> Option<Self> {
-        if 3 * agg.count > DENSE_COARSE_MAX {
-            Self::new_envelope(agg, pattern, a, filter)
-        } else {
-            Self::new_dense(agg, pattern, a, filter)
-        }
-    }
-
-    fn new_dense(
         agg: &'a Aggregation,
         pattern: &BsrPattern,
         a: &BsrMatrix,
@@ -151,7 +112,14 @@ impl<'a> CoarseLevel<'a> {
         if agg.count == 0 {
             return None;
         }
-        let proj: Vec<Matrix3<f64>> = filter.iter().map(projection).collect();
+        let proj: Vec<Matrix3<f64>> = filter
+            .iter()
+            .map(|f| match f {
+                Filter::Free => Matrix3::identity(),
+                Filter::Fixed => Matrix3::zeros(),
+                Filter::Normal(nn) => Matrix3::identity() - nn * nn.transpose(),
+            })
+            .collect();
         let m = 3 * agg.count;
         let mut d = nalgebra::DMatrix::<f64>::zeros(m, m);
         for i in 0..pattern.rows() {
@@ -175,122 +143,7 @@ impl<'a> CoarseLevel<'a> {
                 d[(k, k)] = top.max(1.0);
             }
         }
-        d.cholesky().map(|chol| CoarseLevel {
-            agg,
-            solver: CoarseSolver::Dense(chol),
-        })
-    }
-
-    fn new_envelope(
-        agg: &'a Aggregation,
-        pattern: &BsrPattern,
-        a: &BsrMatrix,
-        filter: &[Filter],
-    ) -> Option<Self> {
-        let (n, count) = (pattern.rows(), agg.count);
-        // Aggregate graph from the block pattern (marker array, O(blocks)).
-        let mut members: Vec<Vec<u32>> = vec![Vec::new(); count];
-        for (i, &g) in agg.of_node.iter().enumerate() {
-            members[g as usize].push(i as u32);
-        }
-        let mut mark = vec![u32::MAX; count];
-        let adjacency: Vec<Vec<u32>> = (0..count)
-            .map(|g| {
-                let mut adj = Vec::new();
-                for &i in &members[g] {
-                    let i = i as usize;
-                    for &j in
-                        &pattern.cols[pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize]
-                    {
-                        let h = agg.of_node[j as usize];
-                        if mark[h as usize] != g as u32 {
-                            mark[h as usize] = g as u32;
-                            adj.push(h);
-                        }
-                    }
-                }
-                adj.sort_unstable();
-                adj
-            })
-            .collect();
-        let order = reverse_cuthill_mckee(&adjacency);
-        let mut position = vec![0u32; count];
-        for (new, &old) in order.iter().enumerate() {
-            position[old as usize] = new as u32;
-        }
-        let first: Vec<usize> = (0..3 * count)
-            .map(|k| {
-                let g = order[k / 3] as usize;
-                3 * adjacency[g]
-                    .iter()
-                    .map(|&h| position[h as usize] as usize)
-                    .fold(k / 3, usize::min)
-            })
-            .collect();
-        let mut e = EnvelopeCholesky::zeros(&first);
-        let proj: Vec<Matrix3<f64>> = filter.iter().map(projection).collect();
-        for i in 0..n {
-            let ri = 3 * position[agg.of_node[i] as usize] as usize;
-            for slot in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
-                let j = pattern.cols[slot] as usize;
-                let rj = 3 * position[agg.of_node[j] as usize] as usize;
-                if rj > ri {
-                    continue;
-                }
-                let blk = proj[i] * a.values[slot] * proj[j];
-                for r in 0..3 {
-                    for c in 0..3 {
-                        if rj + c <= ri + r {
-                            *e.entry_mut(ri + r, rj + c) += blk[(r, c)];
-                        }
-                    }
-                }
-            }
-        }
-        // Aggregates without free directions: identity rows (their correction is zero anyway).
-        let m = 3 * count;
-        let top = (0..m).fold(0.0f64, |t, k| t.max(e.get(k, k)));
-        for k in 0..m {
-            if e.get(k, k) <= 1e-14 * top {
-                for l in 0..k {
-                    if e.contains(k, l) {
-                        *e.entry_mut(k, l) = 0.0;
-                    }
-                }
-                for l in k + 1..m {
-                    if e.contains(l, k) {
-                        *e.entry_mut(l, k) = 0.0;
-                    }
-                }
-                *e.entry_mut(k, k) = top.max(1.0);
-            }
-        }
-        e.factor().then_some(CoarseLevel {
-            agg,
-            solver: CoarseSolver::Envelope {
-                factor: e,
-                position,
-            },
-        })
-    }
-
-    /// Solves the coarse system in place (`rc` in aggregate order, 3 per aggregate).
-    fn solve_coarse(&self, rc: &mut nalgebra::DVector<f64>) {
-        match &self.solver {
-            CoarseSolver::Dense(chol) => chol.solve_mut(rc),
-            CoarseSolver::Envelope { factor, position } => {
-                let mut b = vec![0.0; rc.len()];
-                for (g, &p) in position.iter().enumerate() {
-                    let p = 3 * p as usize;
-                    b[p..p + 3].copy_from_slice(&rc.as_slice()[3 * g..3 * g + 3]);
-                }
-                factor.solve_mut(&mut b);
-                for (g, &p) in position.iter().enumerate() {
-                    let p = 3 * p as usize;
-                    rc.as_mut_slice()[3 * g..3 * g + 3].copy_from_slice(&b[p..p + 3]);
-                }
-            }
-        }
+        d.cholesky().map(|chol| CoarseLevel { agg, chol })
     }
 
     /// `out += S P A_c^-1 P^T r` (r already filtered).
@@ -307,7 +160,7 @@ impl<'a> CoarseLevel<'a> {
             rc[a + 1] += ri.y;
             rc[a + 2] += ri.z;
         }
-        self.solve_coarse(&mut rc);
+        self.chol.solve_mut(&mut rc);
         out.par_chunks_mut(CHUNK)
             .enumerate()
             .map(|(c, o)| {
@@ -697,83 +550,6 @@ mod tests {
                     "seed {seed} entry {i}: {} vs {}",
                     x[i / 3][i % 3],
                     xd[i]
-                );
-            }
-        }
-    }
-
-    /// The banded (envelope) coarse factor gives the same coarse correction as the dense one
-    /// (oracle: nalgebra's dense Cholesky of the same coarse matrix), with fixed and
-    /// normal-constrained nodes and a fully fixed aggregate, and CG with it solves the system
-    /// (oracle: dense LU of the reduced system).
-    #[test]
-    fn banded_coarse_level_matches_the_dense_one() {
-        for seed in 0..4u64 {
-            let n = 180 + 20 * seed as usize;
-            let (p, a, b) = random_system(n, seed + 30);
-            let ring: Vec<Vec<u32>> = (0..n as u32)
-                .map(|i| vec![(i + n as u32 - 1) % n as u32, (i + 1) % n as u32])
-                .collect();
-            let agg = Aggregation::from_graph(n, |i| &ring[i], 2);
-            assert!(3 * agg.count > DENSE_COARSE_MAX);
-            let mut filter = vec![Filter::Free; n];
-            // (Aggregates are {0, n-1}, {1, 2}, {3, 4}, ...: a normal constraint next to a free
-            // node, a fixed node next to a free one.)
-            filter[5] = Filter::Fixed;
-            filter[7] = Filter::Normal(Vec3::new(0.6, 0.0, 0.8));
-            // Nodes 40 and 41 form one aggregate: fully fixed.
-            filter[40] = Filter::Fixed;
-            filter[41] = Filter::Fixed;
-            let dense = CoarseLevel::new_dense(&agg, &p, &a, &filter).unwrap();
-            let banded = CoarseLevel::new(&agg, &p, &a, &filter).unwrap();
-            assert!(matches!(banded.solver, CoarseSolver::Envelope { .. }));
-            let r: Vec<Vec3> = (0..n)
-                .map(|i| filter[i].apply(b[i] - Vec3::repeat(0.5)))
-                .collect();
-            let (mut o1, mut o2) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
-            let d1 = dense.add_correction_dot(&r, &filter, &mut o1);
-            let d2 = banded.add_correction_dot(&r, &filter, &mut o2);
-            let scale = o1.iter().map(|v| v.amax()).fold(0.0, f64::max);
-            assert!(scale > 0.0);
-            for i in 0..n {
-                assert!(
-                    (o1[i] - o2[i]).amax() <= 1e-10 * scale,
-                    "seed {seed} node {i}"
-                );
-            }
-            assert!((d1 - d2).abs() <= 1e-10 * d1.abs());
-            // CG with the banded coarse level against the dense reduced solve.
-            let z = vec![Vec3::zeros(); n];
-            let mut x = vec![Vec3::zeros(); n];
-            let res = solve(
-                &p,
-                &a,
-                &b,
-                &filter,
-                &z,
-                &mut x,
-                PcgSettings {
-                    tolerance: 1e-12,
-                    absolute: 0.0,
-                    max_iterations: 10_000,
-                },
-                Preconditioner::BlockJacobi(Some(&banded)),
-            );
-            assert!(res.converged, "{res:?}");
-            let d = a.to_dense(&p);
-            let mut s = nalgebra::DMatrix::<f64>::zeros(3 * n, 3 * n);
-            for i in 0..n {
-                s.fixed_view_mut::<3, 3>(3 * i, 3 * i)
-                    .copy_from(&projection(&filter[i]));
-            }
-            let bd =
-                nalgebra::DVector::from_iterator(3 * n, b.iter().flat_map(|v| [v.x, v.y, v.z]));
-            let id = nalgebra::DMatrix::identity(3 * n, 3 * n);
-            let xd = (&s * &d * &s + (&id - &s)).lu().solve(&(&s * bd)).unwrap();
-            for k in 0..3 * n {
-                assert!(
-                    (x[k / 3][k % 3] - xd[k]).abs() < 1e-8 * (1.0 + xd[k].abs()),
-                    "seed {seed} entry {k}"
                 );
             }
         }

@@ -32,11 +32,8 @@ use crate::mesh::{Garment, Topology};
 const MAX_RELEASE_ROUNDS: usize = 3;
 /// Meshes from this many vertices on get the coarse-grid CG preconditioner.
 const COARSE_MIN_VERTICES: usize = 200;
-/// Target number of coarse aggregates (`3 x` this many coarse unknowns; above 64 aggregates the
-/// coarse matrix is factorised as a banded matrix, see [`pcg::DENSE_COARSE_MAX`]). On the
-/// 4,950-vertex t-shirt, 64 / 128 / 256 / 512 aggregates gave 149 / 127 / 105 / 94 CG
-/// iterations per step (BENCHMARKS.md, "Simulation").
-const COARSE_AGGREGATES: usize = 256;
+/// Target number of coarse aggregates (the coarse matrix is dense, `3 x` this many unknowns).
+const COARSE_AGGREGATES: usize = 64;
 /// Smallest aggregate.
 const COARSE_MIN_SIZE: usize = 16;
 /// The multigrid hierarchy is rebuilt when a solve needs more than this many times the
