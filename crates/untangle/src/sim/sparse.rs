@@ -428,7 +428,7 @@ mod tests {
                     a.finish_pairs(&p);
                 }
                 let mut fused = vec![Vec3::zeros(); n];
-                let s1 = a.mul_then_sum(&p, &x, &mut fused, &post);
+                let s1 = a.mul_then_sum(&p, &x, &mut fused, post);
                 let mut separate = vec![Vec3::zeros(); n];
                 a.mul(&p, &x, &mut separate);
                 let s2: f64 = separate
