@@ -293,22 +293,16 @@ pub fn solve(
     while delta_new > threshold && it < settings.max_iterations {
         // Fused passes (fewer parallel rounds per iteration); partial sums per fixed chunk,
         // added in chunk order, so results do not depend on the thread count.
-        a.mul(pattern, &c, &mut q);
-        let cq: f64 = q
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .map(|(ch, qs)| {
-                let mut acc = 0.0;
-                for (k, qi) in qs.iter_mut().enumerate() {
-                    let i = ch * CHUNK + k;
-                    *qi = filter[i].apply(*qi);
-                    acc += c[i].dot(qi);
-                }
-                acc
-            })
-            .collect::<Vec<f64>>()
-            .iter()
-            .sum();
+        // q = S A c and c . q, in one pass when possible.
+        let cq = a.mul_then_sum(pattern, &c, &mut q, |first, qs| {
+            let mut acc = 0.0;
+            for (k, qi) in qs.iter_mut().enumerate() {
+                let i = first + k;
+                *qi = filter[i].apply(*qi);
+                acc += c[i].dot(qi);
+            }
+            acc
+        });
         if cq.is_nan() || cq <= 0.0 {
             break;
         }
