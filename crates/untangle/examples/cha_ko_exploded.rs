@@ -40,7 +40,8 @@ fn main() {
         p.sim.gravity = Vec3::zeros();
         p.max_steps = max_steps as usize;
         // Parameter experiments: CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA,
-        // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT.
+        // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT,
+        // CHAKO_ZONE_SPIN (0: impact zones translate), CHAKO_ZONE_SOFT (soft zone levels).
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
         if let Some(v) = env("CHAKO_MAX_LEVEL") {
             p.cha_ko.max_level = v as u32;
@@ -64,6 +65,12 @@ fn main() {
         }
         if let Some(v) = env("CHAKO_LAST_RESORT") {
             p.cha_ko.loop_target_last_resort = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_ZONE_SPIN") {
+            p.sim.zone_motion.spin = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_ZONE_SOFT") {
+            p.sim.zone_motion.soft_levels = v as u32;
         }
         if let Some(v) = env("CHAKO_GAMMA") {
             p.cha_ko.gamma = v;
