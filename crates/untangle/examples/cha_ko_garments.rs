@@ -48,7 +48,8 @@ fn main() {
         let mut p = ResolveParams::default();
         p.sim.gravity = gravity;
         p.max_steps = max_steps;
-        // Ablations: CHAKO_REVOKE, CHAKO_LAST_RESORT=0, CHAKO_AVOID_LOOP_PULL=1, CHAKO_ZONE_SOFT
+        // Ablations: CHAKO_REVOKE, CHAKO_LAST_RESORT=0, CHAKO_AVOID_LOOP_PULL=1,
+        // CHAKO_AVOID_LOOP_PULL_START=1, CHAKO_ZONE_SOFT
         // (the simulator's soft impact-zone levels; 0 = rigid zones).
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
         if let Some(v) = env("CHAKO_REVOKE") {
@@ -56,6 +57,9 @@ fn main() {
         }
         if let Some(v) = env("CHAKO_LAST_RESORT") {
             p.cha_ko.loop_target_last_resort = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_AVOID_LOOP_PULL_START") {
+            p.cha_ko.avoid_loop_pull_targets_at_start = v != 0.0;
         }
         if let Some(v) = env("CHAKO_ZONE_SOFT") {
             p.sim.zone_motion.soft_levels = v as u32;
