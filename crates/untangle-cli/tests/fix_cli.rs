@@ -86,11 +86,8 @@ fn exit_0_report_per_step_and_coloured_frames() {
     assert!(!d.path().join("frames/frame_0001.obj").exists());
     let c = untangle(&["check", last.to_str().unwrap()], d.path());
     assert_eq!(c.status.code(), Some(0));
-    // Quiet: nothing on stdout.
-    let o = untangle(
-        &["fix", "ex.obj", "-o", "q.obj", "--method", "cha-ko", "-q"],
-        d.path(),
-    );
+    // Quiet: nothing on stdout. Without `--method` the default (cha-ko) runs.
+    let o = untangle(&["fix", "ex.obj", "-o", "q.obj", "-q"], d.path());
     assert_eq!(o.status.code(), Some(0));
     assert!(o.stdout.is_empty() && o.stderr.is_empty());
     assert_eq!(
@@ -352,7 +349,6 @@ fn bad_input_is_one_line_exit_2_and_no_output() {
             vec!["fix", "idx.obj", "-o", "o.obj", "--method", "cha-ko"],
             "idx.obj:4",
         ),
-        (vec!["fix", "ex.obj", "-o", "o.obj"], "--method"),
         (
             vec!["fix", "ex.obj", "-o", "o.obj", "--method", "wicke"],
             "wicke",

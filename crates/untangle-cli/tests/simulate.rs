@@ -94,6 +94,7 @@ fn bad_input_exits_2_with_one_line() {
         vec!["simulate", "g.obj", "-o", "o.obj", "--pin", "0"],
         vec!["simulate", "g.obj", "-o", "o.obj", "--pin", "box:1,2"],
         vec!["simulate", "g.obj", "-o", "o.obj", "--dt", "0"],
+        vec!["simulate", "g.obj", "-o", "o.obj", "--dt", "-1"],
         vec!["simulate", "g.obj", "-o", "g.obj"],
         vec!["simulate", "g.obj", "-o", "o.obj", "--body", "nothing.obj"],
     ] {
@@ -102,6 +103,10 @@ fn bad_input_exits_2_with_one_line() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
         assert!(err.starts_with("error: "), "{err}");
+        if args.contains(&"-1") {
+            // A negative number is a value, judged by the parameter check, not a flag.
+            assert!(err.contains("dt must be positive"), "{err}");
+        }
     }
     assert!(!dir.path().join("o.obj").exists());
 }

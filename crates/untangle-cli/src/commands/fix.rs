@@ -35,8 +35,8 @@ pub struct Args {
     /// Write the untangled garment here (OBJ; original uv).
     #[arg(short = 'o', long)]
     pub out: PathBuf,
-    /// Resolution method.
-    #[arg(long, value_enum)]
+    /// Resolution method (Cha & Ko, the default, is the only one so far).
+    #[arg(long, value_enum, default_value = "cha-ko")]
     pub method: Method,
     /// Write the JSON report (summary, every step, every operation, what is left) here.
     #[arg(long)]
@@ -61,23 +61,23 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub body_frame_steps: usize,
     /// Body thickness (metres).
-    #[arg(long, default_value_t = 2e-3)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 2e-3)]
     pub body_thickness: f64,
     /// Pinned vertices (repeatable): `corners`, `top`, `box:XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX`, or
     /// 1-based vertex numbers `I,J,K` as in the OBJ file.
     #[arg(long, allow_hyphen_values = true)]
     pub pin: Vec<String>,
     /// Pull / shrink scale per step (Cha & Ko's gamma).
-    #[arg(long, default_value_t = 0.8)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.8)]
     pub gamma: f64,
     /// Time step (seconds).
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.02)]
     pub dt: f64,
     /// Green-green collision thickness (epsilon_CCD).
-    #[arg(long, default_value_t = 1e-6)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-6)]
     pub eps: f64,
     /// Red-green thickness as a multiple of the average edge length (epsilon_RG).
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.1)]
     pub eps_rg_factor: f64,
     /// Deepest pull / shrink level (rest length kept >= gamma^max_level).
     #[arg(long, default_value_t = 15)]
@@ -89,7 +89,7 @@ pub struct Args {
     #[arg(long, default_value_t = 100)]
     pub stuck_steps: usize,
     /// Gravity along -y (m/s^2); 0 keeps the garment in place while it untangles.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.0)]
     pub gravity: f64,
     /// Disable the fallbacks used when no fan passes the triangle inversion test.
     #[arg(long)]

@@ -19,10 +19,10 @@ pub struct Args {
     pub body: Option<PathBuf>,
     /// Cloth thickness per layer (comma separated; one value applies to all). Default: 0.2 % of
     /// the scene's bounding-box diagonal.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, allow_negative_numbers = true, value_delimiter = ',')]
     pub thickness: Vec<f64>,
     /// Stiffness weight per layer (comma separated; one value applies to all). Default: 1.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, allow_negative_numbers = true, value_delimiter = ',')]
     pub weight: Vec<f64>,
     /// Output folder: one OBJ per layer, same file names as the inputs.
     #[arg(long, short = 'o')]
@@ -34,7 +34,7 @@ pub struct Args {
     #[arg(long, default_value_t = 600)]
     pub samples: usize,
     /// Grid cell of the field caches (default: about 400k nodes per garment).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub cell: Option<f64>,
     /// Sampling seed.
     #[arg(long, default_value_t = 1)]

@@ -21,7 +21,7 @@ pub struct Args {
     #[arg(long, default_value_t = 100)]
     pub steps: usize,
     /// Step length in seconds.
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.02)]
     pub dt: f64,
     /// Obstacle: an OBJ file (static), or a directory of OBJ frames (sorted by name, spread
     /// evenly over the steps and interpolated linearly). Frames meshed differently are first
@@ -46,25 +46,25 @@ pub struct Args {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Cloth-cloth thickness (m).
-    #[arg(long, default_value_t = 2e-3)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 2e-3)]
     pub thickness: f64,
     /// Body thickness (m).
-    #[arg(long, default_value_t = 3e-3)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 3e-3)]
     pub body_thickness: f64,
     /// Body friction coefficient.
-    #[arg(long, default_value_t = 0.3)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.3)]
     pub body_friction: f64,
     /// Cloth-cloth friction coefficient.
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.2)]
     pub friction: f64,
     /// Stretch stiffness (N/m).
-    #[arg(long, default_value_t = 1000.0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1000.0)]
     pub stretch: f64,
     /// Bending stiffness (N m).
-    #[arg(long, default_value_t = 5e-6)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 5e-6)]
     pub bend: f64,
     /// Area density (kg/m^2).
-    #[arg(long, default_value_t = 0.15)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.15)]
     pub density: f64,
     /// Gravity `X,Y,Z` (m/s^2).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "0,-9.81,0")]
@@ -161,7 +161,11 @@ pub struct Body {
 #[derive(clap::Args, Debug, Clone)]
 pub struct Placement {
     /// Scale applied to the body (e.g. 0.1 for meshes in decimetres), before the offset.
-    #[arg(long = "body-scale", default_value_t = 1.0)]
+    #[arg(
+        long = "body-scale",
+        allow_negative_numbers = true,
+        default_value_t = 1.0
+    )]
     pub scale: f64,
     /// Offset added to the body after scaling: `X,Y,Z` in metres.
     #[arg(long = "body-offset", value_parser = parse_vec3, allow_hyphen_values = true)]

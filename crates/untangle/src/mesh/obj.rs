@@ -150,13 +150,14 @@ pub fn parse_obj(text: &str, file: &str, name: &str) -> Result<Mesh> {
             "face has no texture coordinates but other faces do (mixed uv)".into(),
         ));
     }
-    let resolve = |idx: i64, count: usize, what: &str, line: u32| -> Result<u32> {
+    let resolve = |idx: i64, count: usize, what: &str, plural: &str, line: u32| -> Result<u32> {
         if idx >= 1 && (idx as u64) <= count as u64 {
             Ok((idx - 1) as u32)
         } else {
+            let noun = if count == 1 { what } else { plural };
             Err(err(
                 line as usize,
-                format!("{what} index {idx} out of range (the file has {count} {what}s)"),
+                format!("{what} index {idx} out of range (the file has {count} {noun})"),
             ))
         }
     };
@@ -167,9 +168,15 @@ pub fn parse_obj(text: &str, file: &str, name: &str) -> Result<Mesh> {
         let mut tri = [0u32; 3];
         let mut uvt = [0u32; 3];
         for k in 0..3 {
-            tri[k] = resolve(corners[k].0, positions.len(), "vertex", line)?;
+            tri[k] = resolve(corners[k].0, positions.len(), "vertex", "vertices", line)?;
             if let Some(u) = corners[k].1 {
-                uvt[k] = resolve(u, uvs.len(), "texture coordinate", line)?;
+                uvt[k] = resolve(
+                    u,
+                    uvs.len(),
+                    "texture coordinate",
+                    "texture coordinates",
+                    line,
+                )?;
             }
         }
         triangles.push(tri);
@@ -416,7 +423,7 @@ mod tests {
             ("v 0 0\n", "t.obj:1: vertex needs 3 coordinates"),
             (
                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n",
-                "t.obj:4: vertex index 4 out of range",
+                "t.obj:4: vertex index 4 out of range (the file has 3 vertices)",
             ),
             (
                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
@@ -446,7 +453,7 @@ mod tests {
             ),
             (
                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/2 3/1\n",
-                "t.obj:5: texture coordinate index 2 out of range",
+                "t.obj:5: texture coordinate index 2 out of range (the file has 1 texture coordinate)",
             ),
             (
                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/x 2 3\n",
