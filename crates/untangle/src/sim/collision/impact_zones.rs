@@ -5,6 +5,13 @@
 //! at least 1, so no distance inside a zone shrinks and pairs inside one zone need no further
 //! test; CCD is repeated on the rest until it finds nothing. A zone that touches a pinned vertex
 //! or an obstacle takes their (mean) velocity instead.
+//!
+//! Variants ([`ZoneMotion`], ours): a zone may drop its spin and translate (distances kept
+//! exactly, no growth), and a *soft* zone first keeps part of its deformation, its own pairs
+//! still tested by CCD, becoming rigid only after colliding again `soft_levels` times; the
+//! guarantee is the rigid zone's in the end. Why: a tangled cloth under large stretch forces
+//! formed one rigid zone over nearly all of its vertices in every step, so it could not deform
+//! at all, and the linearised spin grew it step by step (docs/cha-ko.md).
 
 use super::{Scene, OBSTACLE};
 use crate::geom::Vec3;
