@@ -40,7 +40,9 @@ fn main() {
         p.sim.gravity = Vec3::zeros();
         p.max_steps = max_steps as usize;
         // Parameter experiments: CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA,
-        // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT.
+        // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT,
+        // CHAKO_ZONE_SPIN (0: impact zones translate), CHAKO_ZONE_SOFT (soft zone levels),
+        // CHAKO_AVOID_LOOP_PULL_START.
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
         if let Some(v) = env("CHAKO_MAX_LEVEL") {
             p.cha_ko.max_level = v as u32;
@@ -62,8 +64,17 @@ fn main() {
         if let Some(v) = env("CHAKO_AVOID_LOOP_PULL") {
             p.cha_ko.avoid_loop_pull_targets = v != 0.0;
         }
+        if let Some(v) = env("CHAKO_AVOID_LOOP_PULL_START") {
+            p.cha_ko.avoid_loop_pull_targets_at_start = v != 0.0;
+        }
         if let Some(v) = env("CHAKO_LAST_RESORT") {
             p.cha_ko.loop_target_last_resort = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_ZONE_SPIN") {
+            p.sim.zone_motion.spin = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_ZONE_SOFT") {
+            p.sim.zone_motion.soft_levels = v as u32;
         }
         if let Some(v) = env("CHAKO_GAMMA") {
             p.cha_ko.gamma = v;

@@ -25,7 +25,12 @@ fn main() {
     let (min_vertices, tangle_steps, max_steps) = (arg(1, 2000), arg(2, 25), arg(3, 600));
     println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    // CHAKO_ONLY=<name>: one garment; CHAKO_STALLS=1: print the last stalls of a run.
+    let only = std::env::var("CHAKO_ONLY").ok();
     for name in ["tshirt", "dress3", "pants3"] {
+        if only.as_deref().is_some_and(|o| o != name) {
+            continue;
+        }
         let Some(mut mesh) = common::arcsim_mesh(name) else {
             return;
         };
@@ -48,13 +53,21 @@ fn main() {
         let mut p = ResolveParams::default();
         p.sim.gravity = gravity;
         p.max_steps = max_steps;
-        // Ablations: CHAKO_REVOKE, CHAKO_LAST_RESORT=0, CHAKO_AVOID_LOOP_PULL=0.
+        // Ablations: CHAKO_REVOKE, CHAKO_LAST_RESORT=0, CHAKO_AVOID_LOOP_PULL=1,
+        // CHAKO_AVOID_LOOP_PULL_START=1, CHAKO_ZONE_SOFT
+        // (the simulator's soft impact-zone levels; 0 = rigid zones).
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
         if let Some(v) = env("CHAKO_REVOKE") {
             p.cha_ko.revoke_levels_per_step = v as u32;
         }
         if let Some(v) = env("CHAKO_LAST_RESORT") {
             p.cha_ko.loop_target_last_resort = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_AVOID_LOOP_PULL_START") {
+            p.cha_ko.avoid_loop_pull_targets_at_start = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_ZONE_SOFT") {
+            p.sim.zone_motion.soft_levels = v as u32;
         }
         if let Some(v) = env("CHAKO_AVOID_LOOP_PULL") {
             p.cha_ko.avoid_loop_pull_targets = v != 0.0;
@@ -80,5 +93,56 @@ fn main() {
             s.mean_ms[2],
             wall
         );
+        if std::env::var("CHAKO_STALLS").is_ok() {
+            let h = r.history();
+            for st in h.iter().rev().take(5).rev() {
+                println!(
+                    "  step {}: pairs {} red {} ops {} pulls +{} ~{} shrinks +{} ~{} blocked fan/subject/tabu {}/{}/{} loop-skipped {} stalls {:?}",
+                    st.step, st.intersecting_pairs, st.red_vertices, st.uv.active_ops,
+                    st.uv.pulls_started, st.uv.pulls_continued, st.uv.shrinks_started,
+                    st.uv.shrinks_continued, st.uv.blocked_fan, st.uv.blocked_subject,
+                    st.uv.blocked_tabu, st.uv.pull_loop_targets_skipped, st.uv.stalls
+                );
+            }
+            let x = r.simulator().positions().to_vec();
+            let (am2, _) = AnalysisMesh::single(&tg.mesh).expect("analysis mesh");
+            let a = untangle::analysis::analyze_with(
+                &am2,
+                &x,
+                &untangle::analysis::Options {
+                    bli_regions_red: true,
+                },
+            )
+            .expect("analysis");
+            let c = &a.coloring;
+            let mut loops: Vec<u32> = a
+                .paths
+                .iter()
+                .flat_map(|p| p.loop_vertices.iter().copied())
+                .collect();
+            loops.sort_unstable();
+            println!(
+                "  final: red {:?} outmost {:?} red* {:?} loop vertices {:?}",
+                (0..c.red_vertex.len())
+                    .filter(|&i| c.red_vertex[i])
+                    .collect::<Vec<_>>(),
+                c.outmost_red,
+                c.red_star,
+                loops
+            );
+            for op in r.chako().operations() {
+                println!(
+                    "  op {:?} subjects {:?} target {} (red {}, loop {}) triangle {} level {} / {}",
+                    op.kind,
+                    op.subjects,
+                    op.target,
+                    c.red_vertex[op.target as usize],
+                    loops.binary_search(&op.target).is_ok(),
+                    op.triangle,
+                    op.level,
+                    op.level_cap
+                );
+            }
+        }
     }
 }

@@ -4,7 +4,9 @@
 //!
 //! `cargo run --release -p untangle --example cha_ko_try -- NAME [SIZE] [SEED] [MAX_LEVEL] [HOLD]`
 //! with NAME a scene of `untangle scene` (`closed`, `ll`, `eight`, `cross`, `bbii`, `bibi`, `bli`)
-//! or `exploded` (SIZE = cells per side); env `MAX_STEPS`, `STUCK`, and `NO_UV=1` (m-CCH alone).
+//! or `exploded` (SIZE = cells per side); env `MAX_STEPS`, `STUCK`, `NO_UV=1` (m-CCH alone),
+//! `CHAKO_ZONE_SOFT`, `CHAKO_ZONE_SPIN` (the simulator's `ZoneMotion`), `CHAKO_AVOID_LOOP_PULL`,
+//! `CHAKO_REVOKE`.
 use untangle::analysis::{AnalysisMesh, ObjectKind};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
@@ -37,6 +39,19 @@ fn main() {
     p.max_steps = std::env::var("MAX_STEPS").map_or(400, |s| s.parse().unwrap());
     if let Ok(s) = std::env::var("STUCK") {
         p.stuck_steps = s.parse().unwrap();
+    }
+    // Impact-zone motion of the simulator (`sim::ZoneMotion`).
+    if let Ok(v) = std::env::var("CHAKO_ZONE_SOFT") {
+        p.sim.zone_motion.soft_levels = v.parse().unwrap();
+    }
+    if let Ok(v) = std::env::var("CHAKO_ZONE_SPIN") {
+        p.sim.zone_motion.spin = v != "0";
+    }
+    if let Ok(v) = std::env::var("CHAKO_AVOID_LOOP_PULL") {
+        p.cha_ko.avoid_loop_pull_targets = v != "0";
+    }
+    if let Ok(v) = std::env::var("CHAKO_REVOKE") {
+        p.cha_ko.revoke_levels_per_step = v.parse().unwrap();
     }
     // Ablation: m-CCH alone, no uv-space update.
     p.uv_update = std::env::var("NO_UV").is_err();

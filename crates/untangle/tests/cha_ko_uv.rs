@@ -1245,6 +1245,37 @@ fn pulls_avoid_loop_vertex_targets_while_another_green_neighbour_exists() {
 }
 
 #[test]
+fn the_start_only_pull_rule_steers_the_target_choice_and_lets_running_pulls_go_on() {
+    // `avoid_loop_pull_targets_at_start` (experiment): the same target choice as the full rule,
+    // but a running pull whose target becomes a loop vertex continues.
+    let n = 4;
+    let g = grid(n);
+    let x = gid(n, 2, 2);
+    let ranked = ranked_neighbours(&g, x);
+    let col = coloring(&g, &[x], &[], &[]);
+    let start_only = Params {
+        avoid_loop_pull_targets_at_start: true,
+        ..Params::default()
+    };
+    let mut ck = ChaKo::new(&g, start_only.clone()).unwrap();
+    let r = ck.update_uv_with_loops(&col, &[ranked[0]], None).unwrap();
+    assert_eq!((r.pulls_started, r.pull_loop_targets_skipped), (1, 1));
+    assert_eq!(ck.operations().next().unwrap().target, ranked[1]);
+    // Running toward ranked[0] (chosen while it was no loop vertex), which then becomes one:
+    // the pull goes on, level by level, with no revoke.
+    let mut ck = ChaKo::new(&g, start_only).unwrap();
+    ck.update_uv_with_loops(&col, &[], None).unwrap();
+    assert_eq!(ck.operations().next().unwrap().target, ranked[0]);
+    for level in 2..=4 {
+        let r = ck.update_uv_with_loops(&col, &[ranked[0]], None).unwrap();
+        assert_eq!((r.pulls_continued, r.revoked_levels), (1, 0));
+        let op = ck.operations().next().unwrap();
+        assert_eq!((op.target, op.level), (ranked[0], level));
+    }
+    assert!(ck.inverted_uv_triangles().is_empty());
+}
+
+#[test]
 fn a_red_star_shrink_toward_a_loop_vertex_is_a_last_resort() {
     let n = 6;
     let g = grid(n);

@@ -292,16 +292,38 @@ fn rest_uv_edits_drive_the_shape() {
 }
 
 /// The fail-safes alone: without proximity repulsion and without CCD impulses every collision
-/// goes to rigid impact zones; with a zone cap of one pass the stall fail-safe takes over. Both
-/// must keep the folding sheet intersection-free (a static floor cannot pinch: no quit).
+/// goes to impact zones (rigid, translating, or soft: `ZoneMotion`); with a zone cap of one pass
+/// the stall fail-safe takes over. All must keep the folding sheet intersection-free (a static
+/// floor cannot pinch: no quit).
 #[test]
 fn impact_zones_and_stall_alone_keep_the_folding_sheet_clean() {
-    for (zones_cap, name) in [(1000, "zones"), (1, "stall")] {
+    use untangle::sim::ZoneMotion;
+    let rigid = ZoneMotion::default();
+    let translating = ZoneMotion {
+        spin: false,
+        soft_levels: 0,
+    };
+    let soft = ZoneMotion {
+        spin: true,
+        soft_levels: 4,
+    };
+    let soft_translating = ZoneMotion {
+        spin: false,
+        soft_levels: 4,
+    };
+    for (zones_cap, motion, name) in [
+        (1000, rigid, "zones"),
+        (1000, translating, "translating zones"),
+        (1000, soft, "soft zones"),
+        (1000, soft_translating, "soft translating zones"),
+        (1, rigid, "stall"),
+    ] {
         let (cloth, mut sim, obs) = folding_sheet(10);
         sim.set_params(SimParams {
             proximity: false,
             max_impulse_iterations: 0,
             max_zone_iterations: zones_cap,
+            zone_motion: motion,
             ..SimParams::default()
         })
         .unwrap();

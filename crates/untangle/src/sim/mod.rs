@@ -30,6 +30,7 @@ pub mod rest;
 pub mod sparse;
 pub mod step;
 
+pub use collision::impact_zones::ZoneMotion;
 pub use obstacle::Obstacle;
 pub use policy::{Contact, ContactPolicy, RedGreen, UniformThickness};
 pub use report::StepReport;

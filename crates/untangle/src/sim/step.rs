@@ -13,6 +13,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::amg::{Amg, AmgSettings};
+use super::collision::impact_zones::ZoneMotion;
 use super::collision::{self, broad::BroadPhase, CollisionSettings, Scene};
 use super::collision::{Pair, PairKind};
 use super::contact::{self, ContactFinder};
@@ -93,6 +94,8 @@ pub struct SimParams {
     pub contacts_within_reach: bool,
     /// Preconditioner of CG for meshes of at least 200 vertices (smaller ones use block-Jacobi).
     pub preconditioner: CgPreconditioner,
+    /// How free rigid impact zones move (see [`ZoneMotion`]).
+    pub zone_motion: ZoneMotion,
 }
 
 /// Which preconditioner CG uses (see [`crate::sim::pcg`] and [`crate::sim::amg`]).
@@ -128,6 +131,7 @@ impl Default for SimParams {
             max_zone_iterations: 100,
             contacts_within_reach: false,
             preconditioner: CgPreconditioner::TwoLevel,
+            zone_motion: ZoneMotion::default(),
         }
     }
 }
@@ -779,9 +783,9 @@ impl Simulator {
                     self.amg_built = None;
                 }
             }
-            // Momentum: CG leaves its error mostly in the rigid translations (see
-            // `pcg::correct_translations`).
-            pcg::correct_translations(&self.pattern, &a, &rhs, &fl, &mut dv);
+            // Momentum and angular momentum: CG leaves its error mostly in the rigid motions
+            // (see `pcg::correct_rigid_motions`).
+            pcg::correct_rigid_motions(&self.pattern, &a, &rhs, &fl, &self.x, &mut dv);
             cg.iterations += r.iterations;
             cg.relative_residual = r.relative_residual;
             cg.converged = r.converged;
@@ -855,6 +859,7 @@ impl Simulator {
                     proximity: p.proximity,
                     contacts_within_reach: p.contacts_within_reach,
                     rebuild: self.steps % collision::broad::REBUILD_EVERY == 0,
+                    zone_motion: p.zone_motion,
                 },
                 &mut self.broad,
             )

@@ -49,6 +49,10 @@ pub struct Params {
     /// [`super::schedule`]). Off by default: it removes one stall mode but re-targets running
     /// pulls whenever loop vertices move, and over the benchmarks it did not help overall.
     pub avoid_loop_pull_targets: bool,
+    /// Like [`Params::avoid_loop_pull_targets`] but only when a pull *starts* (its target
+    /// choice); a running pull whose target later becomes a loop vertex goes on (experiment,
+    /// ours; off by default).
+    pub avoid_loop_pull_targets_at_start: bool,
     /// Which edge-edge pairs with a *mixed* edge (one red, one green end) m-CCH lets cross
     /// (experiment, ours; see [`MixedEdges`]). Default: the paper's (such an edge is red).
     pub mixed_edges: MixedEdges,
@@ -69,6 +73,7 @@ impl Default for Params {
             persistent_green: false,
             loop_target_last_resort: true,
             avoid_loop_pull_targets: false,
+            avoid_loop_pull_targets_at_start: false,
             mixed_edges: MixedEdges::Red,
         }
     }

@@ -58,6 +58,8 @@
 //!   finesse (Sec. 7, Fig. 11a) cannot be completed by shortening the subject edge. Exploded
 //!   handkerchief seed 13 stalled on exactly this: one red vertex pulled toward the two loop
 //!   vertices of an LL path, saturating three times (world edge 8x its rest length).
+//!   [`super::Params::avoid_loop_pull_targets_at_start`] (experiment, off) applies the rule to
+//!   the target choice only: running pulls go on when their target becomes a loop vertex.
 //! - Sec. 6.1 (no TIT-passable fan): a candidate whose every proposal fails the test yields its
 //!   turn (lines 4 and 8). After both loops, such candidates whose subjects and fans are still
 //!   untouched get a fallback operation ([`super::fallback`]), so a regular operation always has
@@ -300,7 +302,9 @@ impl ChaKo {
                 .copied()
                 .filter(|w| loop_vertices.binary_search(w).is_err())
                 .collect();
-            let candidates = if off_loop.is_empty() || !params.avoid_loop_pull_targets {
+            let avoid_at_start =
+                params.avoid_loop_pull_targets || params.avoid_loop_pull_targets_at_start;
+            let candidates = if off_loop.is_empty() || !avoid_at_start {
                 candidates
             } else {
                 if off_loop.len() < candidates.len() {

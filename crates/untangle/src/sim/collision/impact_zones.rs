@@ -5,10 +5,45 @@
 //! at least 1, so no distance inside a zone shrinks and pairs inside one zone need no further
 //! test; CCD is repeated on the rest until it finds nothing. A zone that touches a pinned vertex
 //! or an obstacle takes their (mean) velocity instead.
+//!
+//! Variants ([`ZoneMotion`], ours): a zone may drop its spin and translate (distances kept
+//! exactly, no growth), and a *soft* zone first keeps part of its deformation, its own pairs
+//! still tested by CCD, becoming rigid only after colliding again `soft_levels` times; the
+//! guarantee is the rigid zone's in the end. Why: a tangled cloth under large stretch forces
+//! formed one rigid zone over nearly all of its vertices in every step, so it could not deform
+//! at all, and the linearised spin grew it step by step (docs/cha-ko.md).
 
 use super::{Scene, OBSTACLE};
 use crate::geom::Vec3;
 use nalgebra::Matrix3;
+
+/// How a free impact zone (no pinned vertex, no obstacle) moves. The default is Bridson et
+/// al.'s rigid zone.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ZoneMotion {
+    /// `true` (Bridson et al. 2002, Sec. 7.4): the zone keeps its linear and angular momentum,
+    /// the rotation linearised (`v = v_c + omega x r`, straight-line trajectories), so every
+    /// distance in it grows by up to `sqrt(1 + (h |omega|)^2)` per step. `false`: it keeps its
+    /// linear momentum only and translates, every distance in it stays exactly as it is (its
+    /// angular momentum is dissipated, as in an inelastic impact).
+    pub spin: bool,
+    /// `0`: a zone moves rigidly at once. `k > 0` (ours): a zone first keeps half of its
+    /// deformation (`v = v_rigid + alpha (v_0 - v_rigid)`, `v_0` the velocities the zone phase
+    /// started with, `alpha = 1/2`), and its own pairs are still tested; each pass that finds it
+    /// colliding again halves `alpha`, and after `k` halvings it moves rigidly. A cloth that keeps
+    /// forming one zone over most of its vertices (a tangle under large elastic forces) can then
+    /// still deform a little each step instead of freezing.
+    pub soft_levels: u32,
+}
+
+impl Default for ZoneMotion {
+    fn default() -> Self {
+        ZoneMotion {
+            spin: true,
+            soft_levels: 0,
+        }
+    }
+}
 
 /// Union-find over cloth vertices with per-vertex obstacle anchors.
 pub struct Zones {
@@ -22,6 +57,10 @@ pub struct Zones {
     /// Per vertex: its zone gained members or anchors since the last [`Zones::rigidify`] (read
     /// at the zone's root).
     dirty: Vec<bool>,
+    /// Per zone root: how many times it has been made (more) rigid.
+    level: Vec<u32>,
+    /// Per zone root: the fraction of its deformation it still keeps (0: rigid).
+    alpha: Vec<f64>,
 }
 
 impl Zones {
@@ -34,6 +73,8 @@ impl Zones {
             anchor_count: vec![0; n],
             rigid: vec![true; n],
             dirty: vec![false; n],
+            level: vec![0; n],
+            alpha: vec![0.0; n],
         }
     }
 
@@ -64,7 +105,9 @@ impl Zones {
             return false;
         }
         let r = self.find(nodes[0]);
-        self.rigid[r as usize] && nodes[1..].iter().all(|&n| self.find(n) == r)
+        self.rigid[r as usize]
+            && self.alpha[r as usize] == 0.0
+            && nodes[1..].iter().all(|&n| self.find(n) == r)
     }
 
     /// Merges the cloth nodes of a colliding pair into one zone; obstacle nodes anchor it.
@@ -89,6 +132,7 @@ impl Zones {
             if rc != r {
                 let (lo, hi) = (r.min(rc), r.max(rc));
                 self.parent[hi as usize] = lo;
+                self.level[lo as usize] = self.level[lo as usize].max(self.level[hi as usize]);
                 r = lo;
             }
         }
@@ -132,8 +176,10 @@ impl Zones {
     /// Replaces the velocities of every zone that gained members since the last call by its
     /// rigid motion. The other zones already move rigidly: recomputing their rigid motion from
     /// rigid velocities would only add rounding, and would make every one of their vertices
-    /// look changed to the next CCD pass.
-    pub fn rigidify(&mut self, scene: &Scene, v: &mut [Vec3]) {
+    /// look changed to the next CCD pass. With `motion.soft_levels > 0` a zone keeps part of its
+    /// deformation relative to `v0` (the velocities at the start of the zone phase) until it
+    /// has collided `soft_levels` times (see [`ZoneMotion`]).
+    pub fn rigidify(&mut self, scene: &Scene, v: &mut [Vec3], v0: &[Vec3], motion: ZoneMotion) {
         for zone in self.groups() {
             let root = self.find(zone[0]) as usize;
             if !self.dirty[root] {
@@ -141,6 +187,8 @@ impl Zones {
             }
             self.dirty[root] = false;
             self.rigid[root] = true;
+            self.level[root] += 1;
+            self.alpha[root] = 0.0;
             let mut first_pinned: Option<Vec3> = None;
             let (mut pinned, mut pinned_count) = (Vec3::zeros(), 0u32);
             let (mut anchor, mut anchors) = (Vec3::zeros(), 0u32);
@@ -175,6 +223,15 @@ impl Zones {
                 }
                 continue;
             }
+            // Soft zones take their momenta from the start velocities (the blend keeps them).
+            let soft = motion.soft_levels > 0;
+            let src: &[Vec3] = if soft { v0 } else { v };
+            let alpha = if soft && self.level[root] <= motion.soft_levels {
+                0.5f64.powi(self.level[root] as i32)
+            } else {
+                0.0
+            };
+            self.alpha[root] = alpha;
             let mass = |i: u32| 1.0 / scene.inv_mass[i as usize];
             let total: f64 = zone.iter().map(|&i| mass(i)).sum();
             let c = zone
@@ -186,8 +243,8 @@ impl Zones {
             let mut inertia = Matrix3::zeros();
             for &i in &zone {
                 let (m, r) = (mass(i), scene.x0[i as usize] - c);
-                p += v[i as usize] * m;
-                l += r.cross(&v[i as usize]) * m;
+                p += src[i as usize] * m;
+                l += r.cross(&src[i as usize]) * m;
                 inertia += (Matrix3::identity() * r.norm_squared() - r * r.transpose()) * m;
             }
             // omega = I^+ L with a relative cut-off: directions of (near) zero inertia (a zone
@@ -202,9 +259,17 @@ impl Zones {
                     omega += axis * (axis.dot(&l) / e);
                 }
             }
+            if !motion.spin {
+                omega = Vec3::zeros();
+            }
             let vc = p / total;
             for &i in &zone {
-                v[i as usize] = vc + omega.cross(&(scene.x0[i as usize] - c));
+                let rigid = vc + omega.cross(&(scene.x0[i as usize] - c));
+                v[i as usize] = if alpha > 0.0 {
+                    rigid + (v0[i as usize] - rigid) * alpha
+                } else {
+                    rigid
+                };
             }
         }
     }
