@@ -18,19 +18,29 @@
 use super::tri_tri::CertifiedPlane;
 use super::{Real, Vec3};
 
-/// A triangle with what the pair kernel needs: corners, plane and error-bound factors.
+/// A triangle with what the pair kernel needs: corners (by axis, so the three plane sides of a
+/// pair are computed lane-wise), plane and error-bound factors.
+///
+/// The bounds assume that every corner of any triangle this one is paired with lies within L1
+/// distance `reach_bound` of every corner of this one (see [`PreparedTriangle::new`]); the L1
+/// diagonal of a box holding the whole scene is such a bound. A larger bound only certifies less.
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedTriangle {
-    /// Corners.
-    pub corners: [Vec3; 3],
+    /// Corner coordinates by axis: `x[i]` is corner `i`'s x; lane 3 repeats corner 0.
+    x: [Real; 4],
+    /// Corner y coordinates (lane 3 repeats corner 0).
+    y: [Real; 4],
+    /// Corner z coordinates (lane 3 repeats corner 0).
+    z: [Real; 4],
     /// Unnormalised normal `(c1 - c0) x (c2 - c0)`.
     n: Vec3,
     /// Forward error factor of the plane side `n . (p - c0)` per unit of `|p - c0|_1`.
     k: Real,
-    /// Largest L1 distance of a corner from `c0`.
-    reach: Real,
-    /// L1 length of edge `c[i] -> c[i + 1]`.
-    edge_l1: [Real; 3],
+    /// Certification threshold of a plane side: `k * reach_bound`.
+    tol: Real,
+    /// `sqrt(EPS * reach_bound) * |c[i + 1] - c[i]|_1`: the product of two of them (one per
+    /// triangle) bounds the error of an edge-edge orientation.
+    edge_s: [Real; 3],
 }
 
 /// What [`pair_crossings`] found.
@@ -59,43 +69,121 @@ fn l1(v: &Vec3) -> Real {
 
 /// Relative forward error bound used for the plane sides and the edge-edge orientations: a
 /// triple product of rounded differences has a relative error of about 8 ulps of the product of
-/// the L1 norms; 1e-14 leaves a wide margin (also for the rounding of the norms themselves).
+/// the L1 norms; 1e-14 leaves a wide margin (also for the rounding of the norms and of the reach
+/// bound themselves).
 const EPS: Real = 1e-14;
 
 impl PreparedTriangle {
-    /// Prepares triangle `(a, b, c)`.
+    /// Prepares triangle `(a, b, c)` for pairs whose corners are all within L1 distance
+    /// `reach_bound` of each other (e.g. the L1 diagonal of the scene's box; NaN or infinite
+    /// bounds certify nothing).
     #[inline]
-    pub fn new(a: &Vec3, b: &Vec3, c: &Vec3) -> Self {
+    pub fn new(a: &Vec3, b: &Vec3, c: &Vec3, reach_bound: Real) -> Self {
         let (ab, ac, bc) = (b - a, c - a, c - b);
         let (lab, lac) = (l1(&ab), l1(&ac));
+        let k = EPS * lab * lac;
+        let s = (EPS * reach_bound).sqrt();
         PreparedTriangle {
-            corners: [*a, *b, *c],
+            x: [a.x, b.x, c.x, a.x],
+            y: [a.y, b.y, c.y, a.y],
+            z: [a.z, b.z, c.z, a.z],
             n: ab.cross(&ac),
-            k: EPS * lab * lac,
-            reach: lab.max(lac),
-            edge_l1: [lab, l1(&bc), lac],
+            k,
+            tol: k * reach_bound,
+            edge_s: [s * lab, s * l1(&bc), s * lac],
         }
+    }
+
+    /// Corner `i`.
+    #[inline]
+    pub fn corner(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
     }
 
     /// The certified plane of the triangle (the same plane and bound as
     /// [`CertifiedPlane::new`] on its corners).
     #[inline]
     pub fn plane(&self) -> CertifiedPlane {
-        CertifiedPlane::from_parts(self.n, self.corners[0], self.k)
+        CertifiedPlane::from_parts(self.n, self.corner(0), self.k)
     }
 }
 
-/// Certified sides of `p`'s corners with respect to `plane`'s plane, with `|p_i - c0|_1 <= r`,
-/// as two bit masks: bit `i` of the first = corner `i` certainly on the positive side, of the
-/// second = certainly on the negative side.
+/// The L1 diagonal of the box of `points`, slightly rounded up: a `reach_bound` for
+/// [`PreparedTriangle::new`] of triangles with corners among `points`.
+pub fn reach_bound<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> Real {
+    let b = super::Aabb::from_points(points);
+    let e = b.extent();
+    (e.x + e.y + e.z) * (1.0 + 1e-12)
+}
+
+/// Certified sides of `p`'s corners with respect to `plane`'s plane, as two bit masks: bit `i`
+/// of the first = corner `i` certainly on the positive side, of the second = certainly on the
+/// negative side. Each side is `n.x (x - o.x) + n.y (y - o.y) + n.z (z - o.z)`, rounded the
+/// same way in both versions below (two lanes at a time with SSE2, the x86-64 baseline).
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 #[inline(always)]
-fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
-    let tol = plane.k * r;
-    let o = plane.corners[0];
+fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8, u8) {
+    // SAFETY: SSE2 is enabled at compile time (the cfg above; it is part of the x86-64
+    // baseline); the loads stay inside the corner arrays (see the body).
+    unsafe { side_masks_sse2(p, plane) }
+}
+
+/// The SSE2 body of [`side_masks`].
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+#[inline(always)]
+unsafe fn side_masks_sse2(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8, u8) {
+    use std::arch::x86_64::*;
+    let (ox, oy, oz) = (
+        _mm_set1_pd(plane.x[0]),
+        _mm_set1_pd(plane.y[0]),
+        _mm_set1_pd(plane.z[0]),
+    );
+    let (nx, ny, nz) = (
+        _mm_set1_pd(plane.n.x),
+        _mm_set1_pd(plane.n.y),
+        _mm_set1_pd(plane.n.z),
+    );
+    // Lanes (corner 0, corner 1) and (corner 2, corner 0 again). SAFETY of the loads: each
+    // coordinate array has four elements, so lanes `lo` and `lo + 1` are in bounds for lo <= 2.
+    let side = |lo: usize| {
+        let x = _mm_loadu_pd(p.x.as_ptr().add(lo));
+        let y = _mm_loadu_pd(p.y.as_ptr().add(lo));
+        let z = _mm_loadu_pd(p.z.as_ptr().add(lo));
+        _mm_add_pd(
+            _mm_add_pd(
+                _mm_mul_pd(nx, _mm_sub_pd(x, ox)),
+                _mm_mul_pd(ny, _mm_sub_pd(y, oy)),
+            ),
+            _mm_mul_pd(nz, _mm_sub_pd(z, oz)),
+        )
+    };
+    let (s01, s23) = (side(0), side(2));
+    let (tol, ntol) = (_mm_set1_pd(plane.tol), _mm_set1_pd(-plane.tol));
+    // Ordered comparisons: false for NaN, so NaN is never certified.
+    let pos =
+        _mm_movemask_pd(_mm_cmpgt_pd(s01, tol)) | (_mm_movemask_pd(_mm_cmpgt_pd(s23, tol)) << 2);
+    let neg =
+        _mm_movemask_pd(_mm_cmplt_pd(s01, ntol)) | (_mm_movemask_pd(_mm_cmplt_pd(s23, ntol)) << 2);
+    ((pos & 7) as u8, (neg & 7) as u8)
+}
+
+/// Portable version of the side masks above.
+#[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+#[inline(always)]
+fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8, u8) {
+    side_masks_scalar(p, plane)
+}
+
+/// The side masks one corner at a time (the reference for the SSE2 version).
+#[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "sse2"))))]
+#[inline(always)]
+fn side_masks_scalar(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8, u8) {
+    let tol = plane.tol;
+    let (ox, oy, oz) = (plane.x[0], plane.y[0], plane.z[0]);
     let n = plane.n;
     let (mut pos, mut neg) = (0u8, 0u8);
-    for (i, x) in p.corners.iter().enumerate() {
-        let s = n.x * (x.x - o.x) + n.y * (x.y - o.y) + n.z * (x.z - o.z);
+    for i in 0..3 {
+        let s = n.x * (p.x[i] - ox) + n.y * (p.y[i] - oy) + n.z * (p.z[i] - oz);
         pos |= ((s > tol) as u8) << i;
         neg |= ((s < -tol) as u8) << i;
     }
@@ -113,17 +201,16 @@ fn signs((pos, neg): (u8, u8)) -> [i8; 3] {
 const STRADDLING: [[usize; 2]; 7] = [[0, 0], [2, 0], [0, 1], [1, 2], [1, 2], [0, 1], [2, 0]];
 
 /// Decides every edge-triangle crossing between triangles `a` and `b`, which must not share a
-/// vertex; see the module docs. A certified answer is the exact one, also under the symbolic
-/// perturbation of [`super::predicates::orient3d_sos`] (certified values are non-zero).
+/// vertex and must have been prepared with a common valid reach bound; see the module docs. A
+/// certified answer is the exact one, also under the symbolic perturbation of
+/// [`super::predicates::orient3d_sos`] (certified values are non-zero).
 #[inline]
 pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome {
-    // Every corner difference is bounded in L1 by the reaches plus the distance of the c0s.
-    let r = a.reach + b.reach + l1(&(a.corners[0] - b.corners[0]));
-    let ma = side_masks(a, b, r);
+    let ma = side_masks(a, b);
     if ma.0 == 7 || ma.1 == 7 {
         return PairOutcome::Apart;
     }
-    let mb = side_masks(b, a, r);
+    let mb = side_masks(b, a);
     if mb.0 == 7 || mb.1 == 7 {
         return PairOutcome::Apart;
     }
@@ -135,17 +222,22 @@ pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome
     }
     let (ia, ib) = (STRADDLING[ma.0 as usize], STRADDLING[mb.0 as usize]);
     const NEXT: [usize; 3] = [1, 2, 0];
-    let edge = |t: &PreparedTriangle, i: usize| t.corners[NEXT[i]] - t.corners[i];
+    let edge = |t: &PreparedTriangle, i: usize| {
+        let j = NEXT[i];
+        Vec3::new(t.x[j] - t.x[i], t.y[j] - t.y[i], t.z[j] - t.z[i])
+    };
     let ea = [edge(a, ia[0]), edge(a, ia[1])];
     let eb = [edge(b, ib[0]), edge(b, ib[1])];
     // o[x][y]: orientation of a's straddling edge x with b's straddling edge y,
     // det[q - p, s - p, t - p] for a's edge (p, q) and b's edge (s, t).
     let mut pos = [[false; 2]; 2];
     for x in 0..2 {
+        let (px, py, pz) = (a.x[ia[x]], a.y[ia[x]], a.z[ia[x]]);
         for y in 0..2 {
-            let rr = b.corners[ib[y]] - a.corners[ia[x]];
+            let j = ib[y];
+            let rr = Vec3::new(b.x[j] - px, b.y[j] - py, b.z[j] - pz);
             let o = rr.dot(&eb[y].cross(&ea[x]));
-            let bound = EPS * r * a.edge_l1[ia[x]] * b.edge_l1[ib[y]];
+            let bound = a.edge_s[ia[x]] * b.edge_s[j];
             // NaN is never certified.
             let certified = o.abs() > bound;
             if !certified {
@@ -192,9 +284,34 @@ mod tests {
         mask
     }
 
+    /// The pair prepared with the tightest valid reach bound times `loose` (>= 1).
+    fn prep(p: &[Vec3; 6], loose: f64) -> (PreparedTriangle, PreparedTriangle) {
+        let r = reach_bound(p.iter()) * loose;
+        (
+            PreparedTriangle::new(&p[0], &p[1], &p[2], r),
+            PreparedTriangle::new(&p[3], &p[4], &p[5], r),
+        )
+    }
+
     fn check(p: &[Vec3; 6]) -> Result<(), TestCaseError> {
-        let a = PreparedTriangle::new(&p[0], &p[1], &p[2]);
-        let b = PreparedTriangle::new(&p[3], &p[4], &p[5]);
+        check_with(p, 1.0)?;
+        // A looser (still valid) bound, as for a pair in a large scene: decides less, never
+        // differently.
+        check_with(p, 1e4)
+    }
+
+    fn check_with(p: &[Vec3; 6], loose: f64) -> Result<(), TestCaseError> {
+        let (a, b) = prep(p, loose);
+        for i in 0..3 {
+            prop_assert_eq!(a.corner(i), p[i]);
+            prop_assert_eq!(b.corner(i), p[3 + i]);
+        }
+        prop_assert_eq!(side_masks(&a, &b), side_masks_scalar(&a, &b));
+        prop_assert_eq!(side_masks(&b, &a), side_masks_scalar(&b, &a));
+        prop_assert_eq!(
+            a.plane().normal(),
+            CertifiedPlane::new(&p[0], &p[1], &p[2]).normal()
+        );
         let exact = exact_mask(p);
         match pair_crossings(&a, &b) {
             PairOutcome::Apart => prop_assert_eq!(exact, 0),
@@ -287,10 +404,7 @@ mod tests {
                     rng.random_range(-1.0..1.0),
                 )
             });
-            let (a, b) = (
-                PreparedTriangle::new(&p[0], &p[1], &p[2]),
-                PreparedTriangle::new(&p[3], &p[4], &p[5]),
-            );
+            let (a, b) = prep(&p, 1.0);
             match pair_crossings(&a, &b) {
                 PairOutcome::Crossings(m) => {
                     assert_eq!(m, exact_mask(&p));
@@ -318,10 +432,7 @@ mod tests {
             v([0.3, 0.2, -1.0]),
             v([0.2, 0.3, -1.0]),
         ];
-        let (a, b) = (
-            PreparedTriangle::new(&p[0], &p[1], &p[2]),
-            PreparedTriangle::new(&p[3], &p[4], &p[5]),
-        );
+        let (a, b) = prep(&p, 1.0);
         assert_eq!(
             pair_crossings(&a, &b),
             PairOutcome::Crossings(exact_mask(&p))
@@ -330,7 +441,16 @@ mod tests {
         // Far apart along z.
         let far: [Vec3; 6] =
             std::array::from_fn(|i| p[i] + Vec3::new(0.0, 0.0, 3.0 * (i / 3) as f64));
-        let b2 = PreparedTriangle::new(&far[3], &far[4], &far[5]);
-        assert_eq!(pair_crossings(&a, &b2), PairOutcome::Apart);
+        let (a2, b2) = prep(&far, 1.0);
+        assert_eq!(pair_crossings(&a2, &b2), PairOutcome::Apart);
+        // A reach bound of NaN or infinity certifies nothing.
+        for r in [f64::NAN, f64::INFINITY] {
+            let a3 = PreparedTriangle::new(&p[0], &p[1], &p[2], r);
+            let b3 = PreparedTriangle::new(&p[3], &p[4], &p[5], r);
+            assert!(matches!(
+                pair_crossings(&a3, &b3),
+                PairOutcome::Undecided { .. }
+            ));
+        }
     }
 }
