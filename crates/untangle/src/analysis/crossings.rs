@@ -13,7 +13,7 @@
 
 use super::input::{AnalysisMesh, ObjectKind};
 use crate::broad::Bvh;
-use crate::geom::tri_pair::{pair_crossings, reach_bound, PairOutcome, PreparedTriangle};
+use crate::geom::tri_pair::{pair_crossings, PairOutcome, PreparedTriangle};
 use crate::geom::tri_tri::{
     edge_crosses_triangle_filtered, edge_may_overlap_projected,
     straddling_edge_crosses_triangle_fast, triangles_may_overlap_projected, CertifiedPlane,
@@ -46,12 +46,6 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     // Triangles in BVH slot order, prepared for the pair kernel: the traversal reads them from
     // contiguous memory.
     let order = bvh.order();
-    // Every corner pair of the scene is within this L1 distance (the pair kernel's error bounds).
-    let reach = reach_bound(
-        order
-            .iter()
-            .flat_map(|&t| tris[t as usize].map(|v| &pos[v as usize])),
-    );
     let slot_prep: Vec<PreparedTriangle> = order
         .iter()
         .map(|&t| {
@@ -60,7 +54,6 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
                 &pos[t[0] as usize],
                 &pos[t[1] as usize],
                 &pos[t[2] as usize],
-                reach,
             )
         })
         .collect();

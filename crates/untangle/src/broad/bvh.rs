@@ -10,7 +10,7 @@
 
 use crate::geom::Aabb;
 
-const LEAF_SIZE: usize = 8;
+const LEAF_SIZE: usize = 4;
 /// Smallest subtree offered to the culling predicate (smaller ones are cheaper to traverse).
 pub const CULL_MIN: u32 = 32;
 /// Subtrees with fewer primitives than this are traversed sequentially.

@@ -20,10 +20,6 @@ use super::{Real, Vec3};
 
 /// A triangle with what the pair kernel needs: corners (by axis, so the three plane sides of a
 /// pair are computed lane-wise), plane and error-bound factors.
-///
-/// The bounds assume that every corner of any triangle this one is paired with lies within L1
-/// distance `reach_bound` of every corner of this one (see [`PreparedTriangle::new`]); the L1
-/// diagonal of a box holding the whole scene is such a bound. A larger bound only certifies less.
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedTriangle {
     /// Corner coordinates by axis: `x[i]` is corner `i`'s x; lane 3 repeats corner 0.
@@ -36,11 +32,10 @@ pub struct PreparedTriangle {
     n: Vec3,
     /// Forward error factor of the plane side `n . (p - c0)` per unit of `|p - c0|_1`.
     k: Real,
-    /// Certification threshold of a plane side: `k * reach_bound`.
-    tol: Real,
-    /// `sqrt(EPS * reach_bound) * |c[i + 1] - c[i]|_1`: the product of two of them (one per
-    /// triangle) bounds the error of an edge-edge orientation.
-    edge_s: [Real; 3],
+    /// Largest L1 distance of a corner from `c0`.
+    reach: Real,
+    /// L1 length of edge `c[i] -> c[i + 1]`.
+    edge_l1: [Real; 3],
 }
 
 /// What [`pair_crossings`] found.
@@ -69,28 +64,23 @@ fn l1(v: &Vec3) -> Real {
 
 /// Relative forward error bound used for the plane sides and the edge-edge orientations: a
 /// triple product of rounded differences has a relative error of about 8 ulps of the product of
-/// the L1 norms; 1e-14 leaves a wide margin (also for the rounding of the norms and of the reach
-/// bound themselves).
+/// the L1 norms; 1e-14 leaves a wide margin (also for the rounding of the norms themselves).
 const EPS: Real = 1e-14;
 
 impl PreparedTriangle {
-    /// Prepares triangle `(a, b, c)` for pairs whose corners are all within L1 distance
-    /// `reach_bound` of each other (e.g. the L1 diagonal of the scene's box; NaN or infinite
-    /// bounds certify nothing).
+    /// Prepares triangle `(a, b, c)`.
     #[inline]
-    pub fn new(a: &Vec3, b: &Vec3, c: &Vec3, reach_bound: Real) -> Self {
+    pub fn new(a: &Vec3, b: &Vec3, c: &Vec3) -> Self {
         let (ab, ac, bc) = (b - a, c - a, c - b);
         let (lab, lac) = (l1(&ab), l1(&ac));
-        let k = EPS * lab * lac;
-        let s = (EPS * reach_bound).sqrt();
         PreparedTriangle {
             x: [a.x, b.x, c.x, a.x],
             y: [a.y, b.y, c.y, a.y],
             z: [a.z, b.z, c.z, a.z],
             n: ab.cross(&ac),
-            k,
-            tol: k * reach_bound,
-            edge_s: [s * lab, s * l1(&bc), s * lac],
+            k: EPS * lab * lac,
+            reach: lab.max(lac),
+            edge_l1: [lab, l1(&bc), lac],
         }
     }
 
@@ -108,30 +98,22 @@ impl PreparedTriangle {
     }
 }
 
-/// The L1 diagonal of the box of `points`, slightly rounded up: a `reach_bound` for
-/// [`PreparedTriangle::new`] of triangles with corners among `points`.
-pub fn reach_bound<'a>(points: impl IntoIterator<Item = &'a Vec3>) -> Real {
-    let b = super::Aabb::from_points(points);
-    let e = b.extent();
-    (e.x + e.y + e.z) * (1.0 + 1e-12)
-}
-
-/// Certified sides of `p`'s corners with respect to `plane`'s plane, as two bit masks: bit `i`
-/// of the first = corner `i` certainly on the positive side, of the second = certainly on the
-/// negative side. Each side is `n.x (x - o.x) + n.y (y - o.y) + n.z (z - o.z)`, rounded the
+/// Certified sides of `p`'s corners with respect to `plane`'s plane, with `|p_i - c0|_1 <= r`,
+/// as two bit masks: bit `i` of the first = corner `i` certainly on the positive side, of the
+/// second = certainly on the negative side. Each side is `n.x (x - o.x) + n.y (y - o.y) + n.z (z - o.z)`, rounded the
 /// same way in both versions below (two lanes at a time with SSE2, the x86-64 baseline).
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 #[inline(always)]
-fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8, u8) {
+fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
     // SAFETY: SSE2 is enabled at compile time (the cfg above; it is part of the x86-64
     // baseline); the loads stay inside the corner arrays (see the body).
-    unsafe { side_masks_sse2(p, plane) }
+    unsafe { side_masks_sse2(p, plane, r) }
 }
 
 /// The SSE2 body of [`side_masks`].
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 #[inline(always)]
-unsafe fn side_masks_sse2(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8, u8) {
+unsafe fn side_masks_sse2(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
     use std::arch::x86_64::*;
     let (ox, oy, oz) = (
         _mm_set1_pd(plane.x[0]),
@@ -158,7 +140,8 @@ unsafe fn side_masks_sse2(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8
         )
     };
     let (s01, s23) = (side(0), side(2));
-    let (tol, ntol) = (_mm_set1_pd(plane.tol), _mm_set1_pd(-plane.tol));
+    let t = plane.k * r;
+    let (tol, ntol) = (_mm_set1_pd(t), _mm_set1_pd(-t));
     // Ordered comparisons: false for NaN, so NaN is never certified.
     let pos =
         _mm_movemask_pd(_mm_cmpgt_pd(s01, tol)) | (_mm_movemask_pd(_mm_cmpgt_pd(s23, tol)) << 2);
@@ -170,15 +153,15 @@ unsafe fn side_masks_sse2(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8
 /// Portable version of the side masks above.
 #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
 #[inline(always)]
-fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8, u8) {
-    side_masks_scalar(p, plane)
+fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
+    side_masks_scalar(p, plane, r)
 }
 
 /// The side masks one corner at a time (the reference for the SSE2 version).
 #[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "sse2"))))]
 #[inline(always)]
-fn side_masks_scalar(p: &PreparedTriangle, plane: &PreparedTriangle) -> (u8, u8) {
-    let tol = plane.tol;
+fn side_masks_scalar(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
+    let tol = plane.k * r;
     let (ox, oy, oz) = (plane.x[0], plane.y[0], plane.z[0]);
     let n = plane.n;
     let (mut pos, mut neg) = (0u8, 0u8);
@@ -201,16 +184,19 @@ fn signs((pos, neg): (u8, u8)) -> [i8; 3] {
 const STRADDLING: [[usize; 2]; 7] = [[0, 0], [2, 0], [0, 1], [1, 2], [1, 2], [0, 1], [2, 0]];
 
 /// Decides every edge-triangle crossing between triangles `a` and `b`, which must not share a
-/// vertex and must have been prepared with a common valid reach bound; see the module docs. A
+/// vertex; see the module docs. A
 /// certified answer is the exact one, also under the symbolic perturbation of
 /// [`super::predicates::orient3d_sos`] (certified values are non-zero).
 #[inline]
 pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome {
-    let ma = side_masks(a, b);
+    // Every corner difference is bounded in L1 by the reaches plus the distance of the c0s.
+    let d0 = Vec3::new(a.x[0] - b.x[0], a.y[0] - b.y[0], a.z[0] - b.z[0]);
+    let r = a.reach + b.reach + l1(&d0);
+    let ma = side_masks(a, b, r);
     if ma.0 == 7 || ma.1 == 7 {
         return PairOutcome::Apart;
     }
-    let mb = side_masks(b, a);
+    let mb = side_masks(b, a, r);
     if mb.0 == 7 || mb.1 == 7 {
         return PairOutcome::Apart;
     }
@@ -237,7 +223,7 @@ pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome
             let j = ib[y];
             let rr = Vec3::new(b.x[j] - px, b.y[j] - py, b.z[j] - pz);
             let o = rr.dot(&eb[y].cross(&ea[x]));
-            let bound = a.edge_s[ia[x]] * b.edge_s[j];
+            let bound = EPS * r * a.edge_l1[ia[x]] * b.edge_l1[j];
             // NaN is never certified.
             let certified = o.abs() > bound;
             if !certified {
@@ -284,30 +270,32 @@ mod tests {
         mask
     }
 
-    /// The pair prepared with the tightest valid reach bound times `loose` (>= 1).
-    fn prep(p: &[Vec3; 6], loose: f64) -> (PreparedTriangle, PreparedTriangle) {
-        let r = reach_bound(p.iter()) * loose;
+    /// The kernel's L1 radius of a pair (reaches plus the distance of the first corners).
+    fn pts_reach(p: &[Vec3; 6]) -> f64 {
+        let l1 = |v: Vec3| v.x.abs() + v.y.abs() + v.z.abs();
+        let reach = |q: &[Vec3]| l1(q[1] - q[0]).max(l1(q[2] - q[0]));
+        reach(&p[..3]) + reach(&p[3..]) + l1(p[0] - p[3])
+    }
+
+    fn prep(p: &[Vec3; 6]) -> (PreparedTriangle, PreparedTriangle) {
         (
-            PreparedTriangle::new(&p[0], &p[1], &p[2], r),
-            PreparedTriangle::new(&p[3], &p[4], &p[5], r),
+            PreparedTriangle::new(&p[0], &p[1], &p[2]),
+            PreparedTriangle::new(&p[3], &p[4], &p[5]),
         )
     }
 
     fn check(p: &[Vec3; 6]) -> Result<(), TestCaseError> {
-        check_with(p, 1.0)?;
-        // A looser (still valid) bound, as for a pair in a large scene: decides less, never
-        // differently.
-        check_with(p, 1e4)
-    }
-
-    fn check_with(p: &[Vec3; 6], loose: f64) -> Result<(), TestCaseError> {
-        let (a, b) = prep(p, loose);
+        let (a, b) = prep(p);
         for i in 0..3 {
             prop_assert_eq!(a.corner(i), p[i]);
             prop_assert_eq!(b.corner(i), p[3 + i]);
         }
-        prop_assert_eq!(side_masks(&a, &b), side_masks_scalar(&a, &b));
-        prop_assert_eq!(side_masks(&b, &a), side_masks_scalar(&b, &a));
+        // The SSE2 plane sides equal the scalar ones, for the kernel's radius and for zero
+        // tolerance (the plain signs, exact ties included).
+        for r in [1.0, 0.0, pts_reach(p)] {
+            prop_assert_eq!(side_masks(&a, &b, r), side_masks_scalar(&a, &b, r));
+            prop_assert_eq!(side_masks(&b, &a, r), side_masks_scalar(&b, &a, r));
+        }
         prop_assert_eq!(
             a.plane().normal(),
             CertifiedPlane::new(&p[0], &p[1], &p[2]).normal()
@@ -404,7 +392,7 @@ mod tests {
                     rng.random_range(-1.0..1.0),
                 )
             });
-            let (a, b) = prep(&p, 1.0);
+            let (a, b) = prep(&p);
             match pair_crossings(&a, &b) {
                 PairOutcome::Crossings(m) => {
                     assert_eq!(m, exact_mask(&p));
@@ -432,7 +420,7 @@ mod tests {
             v([0.3, 0.2, -1.0]),
             v([0.2, 0.3, -1.0]),
         ];
-        let (a, b) = prep(&p, 1.0);
+        let (a, b) = prep(&p);
         assert_eq!(
             pair_crossings(&a, &b),
             PairOutcome::Crossings(exact_mask(&p))
@@ -441,16 +429,7 @@ mod tests {
         // Far apart along z.
         let far: [Vec3; 6] =
             std::array::from_fn(|i| p[i] + Vec3::new(0.0, 0.0, 3.0 * (i / 3) as f64));
-        let (a2, b2) = prep(&far, 1.0);
+        let (a2, b2) = prep(&far);
         assert_eq!(pair_crossings(&a2, &b2), PairOutcome::Apart);
-        // A reach bound of NaN or infinity certifies nothing.
-        for r in [f64::NAN, f64::INFINITY] {
-            let a3 = PreparedTriangle::new(&p[0], &p[1], &p[2], r);
-            let b3 = PreparedTriangle::new(&p[3], &p[4], &p[5], r);
-            assert!(matches!(
-                pair_crossings(&a3, &b3),
-                PairOutcome::Undecided { .. }
-            ));
-        }
     }
 }
