@@ -19,6 +19,7 @@ use crate::geom::tri_tri::{
     straddling_edge_crosses_triangle_fast, triangles_may_overlap_projected, CertifiedPlane,
 };
 use crate::geom::{Aabb, Vec3};
+use crate::mesh::topology::NONE;
 
 /// Edge `edge` passes through triangle `triangle`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -45,15 +46,34 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     // Triangles in BVH slot order, prepared for the pair kernel: the traversal reads them from
     // contiguous memory.
     let order = bvh.order();
-    let slot_tris: Vec<[u32; 3]> = order.iter().map(|&t| tris[t as usize]).collect();
-    let slot_prep: Vec<PreparedTriangle> = slot_tris
+    let slot_prep: Vec<PreparedTriangle> = order
         .iter()
-        .map(|t| {
+        .map(|&t| {
+            let t = tris[t as usize];
             PreparedTriangle::new(
                 &pos[t[0] as usize],
                 &pos[t[1] as usize],
                 &pos[t[2] as usize],
             )
+        })
+        .collect();
+    let slot_tris: Vec<SlotTriangle> = order
+        .iter()
+        .map(|&t| {
+            let edges = topo.triangle_edges[t as usize];
+            let v = tris[t as usize];
+            SlotTriangle {
+                vertices: [v[0], v[1], v[2], NONE],
+                owned_edges: edges.map(|e| {
+                    if topo.edge_triangles[e as usize][0] == t {
+                        e
+                    } else {
+                        NONE
+                    }
+                }),
+                id: t,
+                obstacle: has_obstacles && mesh.kind_of_triangle(t) == ObjectKind::Obstacle,
+            }
         })
         .collect();
     let mut planes =
@@ -70,27 +90,28 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     let certified = std::sync::Mutex::new(Vec::new());
     let mut out = bvh.self_slot_pairs_culled(
         |sa, sb, out: &mut Vec<Crossing>| {
-            let (ta, tb) = (slot_tris[sa as usize], slot_tris[sb as usize]);
-            if shares_a_vertex(ta, tb) {
+            let (ta, tb) = (&slot_tris[sa as usize], &slot_tris[sb as usize]);
+            if shares_a_vertex(&ta.vertices, &tb.vertices) {
                 return; // shared vertex or edge: the fan pass decides
             }
-            let id = |s: u32| order[s as usize];
-            if has_obstacles
-                && mesh.kind_of_triangle(id(sa)) == ObjectKind::Obstacle
-                && mesh.kind_of_triangle(id(sb)) == ObjectKind::Obstacle
-            {
+            if ta.obstacle && tb.obstacle {
                 return;
             }
             match pair_crossings(&slot_prep[sa as usize], &slot_prep[sb as usize]) {
                 PairOutcome::Apart | PairOutcome::Crossings(0) => {}
                 PairOutcome::Crossings(mask) => {
-                    let (a, b) = (id(sa), id(sb));
-                    ctx.push_owned_edges(a, b, mask & 7, out);
-                    ctx.push_owned_edges(b, a, mask >> 3, out);
+                    push_owned_edges(ta, tb.id, mask & 7, out);
+                    push_owned_edges(tb, ta.id, mask >> 3, out);
                 }
-                PairOutcome::Undecided { sides_a, sides_b } => {
-                    ctx.pair_with_sides(id(sa), id(sb), ta, tb, sides_a, sides_b, out)
-                }
+                PairOutcome::Undecided { sides_a, sides_b } => ctx.pair_with_sides(
+                    ta.id,
+                    tb.id,
+                    tris[ta.id as usize],
+                    tris[tb.id as usize],
+                    sides_a,
+                    sides_b,
+                    out,
+                ),
             }
         },
         |node, first, len| {
@@ -127,9 +148,67 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
     out
 }
 
-/// Whether two triangles have a common vertex (branch-free).
-#[inline]
-fn shares_a_vertex(a: [u32; 3], b: [u32; 3]) -> bool {
+/// What the pair loop reads of a triangle, in BVH slot order (contiguous for the traversal).
+#[derive(Clone, Copy)]
+struct SlotTriangle {
+    /// The three vertices and [`NONE`] (padding for the four-lane vertex test).
+    vertices: [u32; 4],
+    /// Edge `k` (corner `k` to `k + 1`) if this triangle owns it (is the lower-indexed triangle
+    /// beside it, so it reports the edge's crossings), else [`NONE`].
+    owned_edges: [u32; 3],
+    /// Triangle index.
+    id: u32,
+    /// Whether the triangle belongs to an obstacle (obstacle-obstacle pairs are skipped).
+    obstacle: bool,
+}
+
+/// Crossings of the edges `k` of `a` with bit `k` set in `mask` through triangle `b`, for the
+/// edges that `a` owns.
+#[inline(always)]
+fn push_owned_edges(a: &SlotTriangle, b: u32, mask: u8, out: &mut Vec<Crossing>) {
+    for (k, &e) in a.owned_edges.iter().enumerate() {
+        if mask & (1 << k) != 0 && e != NONE {
+            out.push(Crossing {
+                edge: e,
+                triangle: b,
+            });
+        }
+    }
+}
+
+/// Whether two triangles (vertex lists padded to four lanes) have a common vertex: every lane of
+/// `b` against each of `a`'s three vertices, lane 3 of `b` ignored (SSE2, the x86-64 baseline).
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+#[inline(always)]
+fn shares_a_vertex(a: &[u32; 4], b: &[u32; 4]) -> bool {
+    use std::arch::x86_64::*;
+    // SAFETY: SSE2 is enabled at compile time (the cfg above); each load reads one whole
+    // four-element array.
+    unsafe {
+        let va = _mm_loadu_si128(a.as_ptr() as *const __m128i);
+        let vb = _mm_loadu_si128(b.as_ptr() as *const __m128i);
+        let eq = _mm_or_si128(
+            _mm_or_si128(
+                _mm_cmpeq_epi32(vb, _mm_shuffle_epi32::<0x00>(va)),
+                _mm_cmpeq_epi32(vb, _mm_shuffle_epi32::<0x55>(va)),
+            ),
+            _mm_cmpeq_epi32(vb, _mm_shuffle_epi32::<0xAA>(va)),
+        );
+        _mm_movemask_epi8(eq) & 0x0fff != 0
+    }
+}
+
+/// Portable version of [`shares_a_vertex`].
+#[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+#[inline(always)]
+fn shares_a_vertex(a: &[u32; 4], b: &[u32; 4]) -> bool {
+    shares_a_vertex_scalar(a, b)
+}
+
+/// Whether two triangles have a common vertex, one comparison at a time (the reference).
+#[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "sse2"))))]
+#[inline(always)]
+fn shares_a_vertex_scalar(a: &[u32; 4], b: &[u32; 4]) -> bool {
     let eq = |v: u32| (v == b[0]) | (v == b[1]) | (v == b[2]);
     eq(a[0]) | eq(a[1]) | eq(a[2])
 }
@@ -276,25 +355,6 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// Crossings of the edges `k` of `a` with bit `k` set in `mask` through triangle `b`, for the
-    /// edges that `a` owns (the lower-indexed triangle beside an edge tests it).
-    #[inline(always)]
-    fn push_owned_edges(&self, a: u32, b: u32, mask: u8, out: &mut Vec<Crossing>) {
-        if mask == 0 {
-            return;
-        }
-        let topo = &self.mesh.topology;
-        let edges = topo.triangle_edges[a as usize];
-        for (k, &e) in edges.iter().enumerate() {
-            if mask & (1 << k) != 0 && topo.edge_triangles[e as usize][0] == a {
-                out.push(Crossing {
-                    edge: e,
-                    triangle: b,
-                });
-            }
-        }
-    }
-
     /// All crossings between triangles `a` and `b` (no common vertex) that the pair kernel left
     /// undecided, given the certified sides of each one's corners with respect to the other's
     /// plane. Each edge is tested only by its owner (the lower-indexed triangle beside it), so
@@ -303,7 +363,8 @@ impl Ctx<'_> {
     /// Pairs that look coplanar go through a 2D separating-axis test (a conservative filter);
     /// an edge with certified opposite sides needs only the three side tests.
     #[allow(clippy::too_many_arguments)]
-    #[inline]
+    #[inline(never)]
+    #[cold]
     fn pair_with_sides(
         &self,
         a: u32,
@@ -418,6 +479,30 @@ impl Ctx<'_> {
                     triangle: b,
                 });
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The four-lane vertex test equals the comparison-by-comparison one (small ids, so that
+        /// zero to three shared vertices all occur).
+        #[test]
+        fn shared_vertex_test_matches_the_scalar_one(
+            a in proptest::array::uniform3(0u32..6),
+            b in proptest::array::uniform3(0u32..6),
+            big in 0u32..3,
+        ) {
+            let lift = |v: [u32; 3]| [v[0] + big * (u32::MAX / 4), v[1], v[2], NONE];
+            let (a, b) = (lift(a), lift(b));
+            let brute = a[..3].iter().any(|v| b[..3].contains(v));
+            prop_assert_eq!(shares_a_vertex(&a, &b), brute);
+            prop_assert_eq!(shares_a_vertex_scalar(&a, &b), brute);
+            prop_assert_eq!(shares_a_vertex(&b, &a), brute);
         }
     }
 }

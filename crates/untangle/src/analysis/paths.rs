@@ -166,15 +166,18 @@ struct Chain {
     turns: Vec<(usize, u32)>,
 }
 
-/// Links every piece end. Returns `[Link; 2]` per piece, indexed by segment end.
+/// Links every piece end. Returns `[Link; 2]` per piece, indexed by segment end, and per piece
+/// end the edge of the piece's own triangle the path passes across there ([`NONE`] if none).
+#[allow(clippy::type_complexity)]
 fn link_pieces(
     mesh: &AnalysisMesh,
     crossings: &[Crossing],
     segs: &Segments,
-) -> Result<Vec<[Link; 2]>, Inconsistency> {
+) -> Result<(Vec<[Link; 2]>, Vec<[u32; 2]>), Inconsistency> {
     let topo = &mesh.topology;
     let n = segs.segments.len() * 2;
     let mut links = vec![[Link::Terminal(EndKind::Inside); 2]; n];
+    let mut across = vec![[NONE; 2]; n];
     for (s, seg) in segs.segments.iter().enumerate() {
         for side in 0..2 {
             let piece = (2 * s + side) as u32;
@@ -189,6 +192,7 @@ fn link_pieces(
                         let cr = crossings[c as usize];
                         // Which triangle the path continues in, and the one it continues against.
                         let (next_tri, against) = if cr.triangle == other {
+                            across[piece as usize][k] = cr.edge;
                             (topo.other_triangle(cr.edge, tri), other)
                         } else {
                             (tri, topo.other_triangle(cr.edge, other))
@@ -211,7 +215,10 @@ fn link_pieces(
                             }
                             let nseg = &segs.segments[ns as usize];
                             let nside = nseg.triangles.iter().position(|&t| t == next_tri);
-                            let nend = nseg.ends.iter().position(|e| *e == End::Crossing(c));
+                            let nend = nseg
+                                .ends
+                                .iter()
+                                .position(|e| matches!(e, End::Crossing(x) if *x == c));
                             match (nside, nend, nseg.triangles.contains(&against)) {
                                 (Some(ns_side), Some(e), true) => Link::Piece {
                                     piece: ns * 2 + ns_side as u32,
@@ -231,7 +238,7 @@ fn link_pieces(
             }
         }
     }
-    Ok(links)
+    Ok((links, across))
 }
 
 /// The chains and cycles of linked pieces, with all their steps in one list.
@@ -318,24 +325,11 @@ fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u
     (chains, all_steps)
 }
 
-/// The edge a path passes across when it leaves `piece` through its end `exit` (the crossing
-/// edge belongs to the piece's own triangle), if any.
-fn edge_across(crossings: &[Crossing], segs: &Segments, piece: u32, exit: u8) -> Option<u32> {
-    let seg = &segs.segments[(piece / 2) as usize];
-    let other = seg.triangles[1 - (piece % 2) as usize];
-    match seg.ends[exit as usize] {
-        End::Crossing(c) if crossings[c as usize].triangle == other => {
-            Some(crossings[c as usize].edge)
-        }
-        _ => None,
-    }
-}
-
 /// The edges crossed an odd number of times between the pieces of `steps`; when the sub-path
-/// starts or ends with a `B` end, that boundary edge counts too. `edges` is scratch space.
+/// starts or ends with a `B` end, that boundary edge counts too. `across` is per piece end the
+/// edge passed across there (from [`link_pieces`]); `edges` is scratch space.
 fn cut_of(
-    crossings: &[Crossing],
-    segs: &Segments,
+    across: &[[u32; 2]],
     steps: &[(u32, u8)],
     (closed, b_start, b_end): (bool, bool, bool),
     edges: &mut Vec<u32>,
@@ -347,23 +341,22 @@ fn cut_of(
     } else {
         count.saturating_sub(1)
     };
-    for i in 0..transitions {
-        let (p, e) = steps[i];
-        if let Some(edge) = edge_across(crossings, segs, p, 1 - e) {
-            edges.push(edge);
+    let mut push = |p: u32, exit: u8| {
+        let e = across[p as usize][exit as usize];
+        if e != NONE {
+            edges.push(e);
         }
+    };
+    for &(p, e) in &steps[..transitions] {
+        push(p, 1 - e);
     }
     if b_start {
         let (p, e) = steps[0];
-        if let Some(edge) = edge_across(crossings, segs, p, e) {
-            edges.push(edge);
-        }
+        push(p, e);
     }
     if b_end {
         let (p, e) = steps[count - 1];
-        if let Some(edge) = edge_across(crossings, segs, p, 1 - e) {
-            edges.push(edge);
-        }
+        push(p, 1 - e);
     }
     edges.sort_unstable();
     // Keep edges crossed an odd number of times.
@@ -388,7 +381,7 @@ pub fn trace_paths(
     crossings: &[Crossing],
     segs: &Segments,
 ) -> Result<(Vec<Path>, Vec<Tanglement>), Inconsistency> {
-    let links = link_pieces(mesh, crossings, segs)?;
+    let (links, across) = link_pieces(mesh, crossings, segs)?;
     let (chains, all_steps) = walk_chains(&links, segs);
     let steps_of = |c: &Chain| &all_steps[c.steps.clone()];
     let mut scratch = Vec::new();
@@ -474,13 +467,7 @@ pub fn trace_paths(
             Class::Plain(kind) => {
                 let b0 = ch.ends.map(|e| e[0] == EndKind::Boundary).unwrap_or(false);
                 let b1 = ch.ends.map(|e| e[1] == EndKind::Boundary).unwrap_or(false);
-                let cut = cut_of(
-                    crossings,
-                    segs,
-                    steps_of(ch),
-                    (ch.closed, b0, b1),
-                    &mut scratch,
-                );
+                let cut = cut_of(&across, steps_of(ch), (ch.closed, b0, b1), &mut scratch);
                 let mut lv: Vec<u32> = ch.turns.iter().map(|t| t.1).collect();
                 lv.sort_unstable();
                 lv.dedup();
@@ -504,7 +491,7 @@ pub fn trace_paths(
                 let mut lobe2: Vec<(u32, u8)> = steps[j + 1..].to_vec();
                 lobe2.extend_from_slice(&steps[..=i]);
                 for lobe in [lobe1, lobe2] {
-                    let cut = cut_of(crossings, segs, &lobe, (true, false, false), &mut scratch);
+                    let cut = cut_of(&across, &lobe, (true, false, false), &mut scratch);
                     make_path(
                         &mut paths,
                         PathKind::Closed,
@@ -523,8 +510,7 @@ pub fn trace_paths(
                 if other == usize::MAX {
                     let ends = ch.ends.expect("open");
                     let cut = cut_of(
-                        crossings,
-                        segs,
+                        &across,
                         steps_of(ch),
                         (
                             false,
@@ -573,14 +559,8 @@ pub fn trace_paths(
                     let mut steps = a.0.clone();
                     steps.extend(b.0.iter().rev().map(|&(p, e)| (p, 1 - e)));
                     let is_b = kind == EndKind::Boundary;
-                    let mut cut = cut_of(crossings, segs, &a.0, (false, is_b, false), &mut scratch);
-                    cut.extend(cut_of(
-                        crossings,
-                        segs,
-                        &b.0,
-                        (false, is_b, false),
-                        &mut scratch,
-                    ));
+                    let mut cut = cut_of(&across, &a.0, (false, is_b, false), &mut scratch);
+                    cut.extend(cut_of(&across, &b.0, (false, is_b, false), &mut scratch));
                     cut.sort_unstable();
                     let mut odd = Vec::new();
                     for e in cut {

@@ -167,7 +167,7 @@ impl Bvh {
             return Vec::new();
         }
         let mut out = Vec::new();
-        self.self_rec(0, &visit, &cull, &mut out);
+        self.self_rec(0, par_cutoff(), &visit, &cull, &mut out);
         out
     }
 
@@ -213,6 +213,7 @@ impl Bvh {
     >(
         &self,
         a: usize,
+        cutoff: u32,
         visit: &F,
         cull: &C,
         out: &mut Vec<T>,
@@ -234,25 +235,25 @@ impl Bvh {
             return;
         }
         let (l, r) = (n.start as usize, n.right as usize);
-        if n.size >= PAR_CUTOFF {
+        if n.size >= cutoff {
             let ((mut o1, o2), o3) = rayon::join(
                 || {
                     rayon::join(
                         || {
                             let mut o = Vec::new();
-                            self.self_rec(l, visit, cull, &mut o);
+                            self.self_rec(l, cutoff, visit, cull, &mut o);
                             o
                         },
                         || {
                             let mut o = Vec::new();
-                            self.self_rec(r, visit, cull, &mut o);
+                            self.self_rec(r, cutoff, visit, cull, &mut o);
                             o
                         },
                     )
                 },
                 || {
                     let mut o = Vec::new();
-                    self.cross_rec_slots(self, l, r, visit, &mut o);
+                    self.cross_rec_slots(self, l, r, cutoff, visit, &mut o);
                     o
                 },
             );
@@ -264,9 +265,9 @@ impl Bvh {
                 out.extend(o1);
             }
         } else {
-            self.self_rec(l, visit, cull, out);
-            self.self_rec(r, visit, cull, out);
-            self.cross_rec_slots(self, l, r, visit, out);
+            self.self_rec(l, cutoff, visit, cull, out);
+            self.self_rec(r, cutoff, visit, cull, out);
+            self.cross_rec_slots(self, l, r, cutoff, visit, out);
         }
     }
 
@@ -283,7 +284,7 @@ impl Bvh {
         let (oa, ob) = (&self.order, &other.order);
         let visit = |i: u32, j: u32, out: &mut Vec<T>| visit(oa[i as usize], ob[j as usize], out);
         let mut out = Vec::new();
-        self.cross_rec_slots(other, 0, 0, &visit, &mut out);
+        self.cross_rec_slots(other, 0, 0, par_cutoff(), &visit, &mut out);
         out
     }
 
@@ -293,6 +294,7 @@ impl Bvh {
         other: &Bvh,
         a: usize,
         b: usize,
+        cutoff: u32,
         visit: &F,
         out: &mut Vec<T>,
     ) {
@@ -313,27 +315,27 @@ impl Bvh {
         }
         // Descend the larger (or the only inner) node.
         let split_a = !na.is_leaf() && (nb.is_leaf() || na.aabb.half_area() >= nb.aabb.half_area());
-        let parallel = na.size + nb.size >= PAR_CUTOFF;
+        let parallel = na.size + nb.size >= cutoff;
         if split_a {
             let (l, r) = (na.start as usize, na.right as usize);
             if parallel {
                 let (mut o1, o2) = rayon::join(
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec_slots(other, l, b, visit, &mut o);
+                        self.cross_rec_slots(other, l, b, cutoff, visit, &mut o);
                         o
                     },
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec_slots(other, r, b, visit, &mut o);
+                        self.cross_rec_slots(other, r, b, cutoff, visit, &mut o);
                         o
                     },
                 );
                 o1.extend(o2);
                 out.extend(o1);
             } else {
-                self.cross_rec_slots(other, l, b, visit, out);
-                self.cross_rec_slots(other, r, b, visit, out);
+                self.cross_rec_slots(other, l, b, cutoff, visit, out);
+                self.cross_rec_slots(other, r, b, cutoff, visit, out);
             }
         } else {
             let (l, r) = (nb.start as usize, nb.right as usize);
@@ -341,20 +343,20 @@ impl Bvh {
                 let (mut o1, o2) = rayon::join(
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec_slots(other, a, l, visit, &mut o);
+                        self.cross_rec_slots(other, a, l, cutoff, visit, &mut o);
                         o
                     },
                     || {
                         let mut o = Vec::new();
-                        self.cross_rec_slots(other, a, r, visit, &mut o);
+                        self.cross_rec_slots(other, a, r, cutoff, visit, &mut o);
                         o
                     },
                 );
                 o1.extend(o2);
                 out.extend(o1);
             } else {
-                self.cross_rec_slots(other, a, l, visit, out);
-                self.cross_rec_slots(other, a, r, visit, out);
+                self.cross_rec_slots(other, a, l, cutoff, visit, out);
+                self.cross_rec_slots(other, a, r, cutoff, visit, out);
             }
         }
     }
@@ -384,6 +386,17 @@ impl Bvh {
                 sp += 2;
             }
         }
+    }
+}
+
+/// Subtree size from which traversals split into parallel tasks: [`PAR_CUTOFF`], or never with a
+/// single worker thread (the split only adds task and buffer overhead there). The output order is
+/// the same either way.
+fn par_cutoff() -> u32 {
+    if rayon::current_num_threads() > 1 {
+        PAR_CUTOFF
+    } else {
+        u32::MAX
     }
 }
 

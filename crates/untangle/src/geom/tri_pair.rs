@@ -18,11 +18,16 @@
 use super::tri_tri::CertifiedPlane;
 use super::{Real, Vec3};
 
-/// A triangle with what the pair kernel needs: corners, plane and error-bound factors.
+/// A triangle with what the pair kernel needs: corners (by axis, so the three plane sides of a
+/// pair are computed lane-wise), plane and error-bound factors.
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedTriangle {
-    /// Corners.
-    pub corners: [Vec3; 3],
+    /// Corner coordinates by axis: `x[i]` is corner `i`'s x; lane 3 repeats corner 0.
+    x: [Real; 4],
+    /// Corner y coordinates (lane 3 repeats corner 0).
+    y: [Real; 4],
+    /// Corner z coordinates (lane 3 repeats corner 0).
+    z: [Real; 4],
     /// Unnormalised normal `(c1 - c0) x (c2 - c0)`.
     n: Vec3,
     /// Forward error factor of the plane side `n . (p - c0)` per unit of `|p - c0|_1`.
@@ -69,7 +74,9 @@ impl PreparedTriangle {
         let (ab, ac, bc) = (b - a, c - a, c - b);
         let (lab, lac) = (l1(&ab), l1(&ac));
         PreparedTriangle {
-            corners: [*a, *b, *c],
+            x: [a.x, b.x, c.x, a.x],
+            y: [a.y, b.y, c.y, a.y],
+            z: [a.z, b.z, c.z, a.z],
             n: ab.cross(&ac),
             k: EPS * lab * lac,
             reach: lab.max(lac),
@@ -77,25 +84,89 @@ impl PreparedTriangle {
         }
     }
 
+    /// Corner `i`.
+    #[inline]
+    pub fn corner(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
+    }
+
     /// The certified plane of the triangle (the same plane and bound as
     /// [`CertifiedPlane::new`] on its corners).
     #[inline]
     pub fn plane(&self) -> CertifiedPlane {
-        CertifiedPlane::from_parts(self.n, self.corners[0], self.k)
+        CertifiedPlane::from_parts(self.n, self.corner(0), self.k)
     }
 }
 
 /// Certified sides of `p`'s corners with respect to `plane`'s plane, with `|p_i - c0|_1 <= r`,
 /// as two bit masks: bit `i` of the first = corner `i` certainly on the positive side, of the
-/// second = certainly on the negative side.
+/// second = certainly on the negative side. Each side is `n.x (x - o.x) + n.y (y - o.y) + n.z (z - o.z)`, rounded the
+/// same way in both versions below (two lanes at a time with SSE2, the x86-64 baseline).
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 #[inline(always)]
 fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
+    // SAFETY: SSE2 is enabled at compile time (the cfg above; it is part of the x86-64
+    // baseline); the loads stay inside the corner arrays (see the body).
+    unsafe { side_masks_sse2(p, plane, r) }
+}
+
+/// The SSE2 body of [`side_masks`].
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+#[inline(always)]
+unsafe fn side_masks_sse2(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
+    use std::arch::x86_64::*;
+    let (ox, oy, oz) = (
+        _mm_set1_pd(plane.x[0]),
+        _mm_set1_pd(plane.y[0]),
+        _mm_set1_pd(plane.z[0]),
+    );
+    let (nx, ny, nz) = (
+        _mm_set1_pd(plane.n.x),
+        _mm_set1_pd(plane.n.y),
+        _mm_set1_pd(plane.n.z),
+    );
+    // Lanes (corner 0, corner 1) and (corner 2, corner 0 again). SAFETY of the loads: each
+    // coordinate array has four elements, so lanes `lo` and `lo + 1` are in bounds for lo <= 2.
+    let side = |lo: usize| {
+        let x = _mm_loadu_pd(p.x.as_ptr().add(lo));
+        let y = _mm_loadu_pd(p.y.as_ptr().add(lo));
+        let z = _mm_loadu_pd(p.z.as_ptr().add(lo));
+        _mm_add_pd(
+            _mm_add_pd(
+                _mm_mul_pd(nx, _mm_sub_pd(x, ox)),
+                _mm_mul_pd(ny, _mm_sub_pd(y, oy)),
+            ),
+            _mm_mul_pd(nz, _mm_sub_pd(z, oz)),
+        )
+    };
+    let (s01, s23) = (side(0), side(2));
+    let t = plane.k * r;
+    let (tol, ntol) = (_mm_set1_pd(t), _mm_set1_pd(-t));
+    // Ordered comparisons: false for NaN, so NaN is never certified.
+    let pos =
+        _mm_movemask_pd(_mm_cmpgt_pd(s01, tol)) | (_mm_movemask_pd(_mm_cmpgt_pd(s23, tol)) << 2);
+    let neg =
+        _mm_movemask_pd(_mm_cmplt_pd(s01, ntol)) | (_mm_movemask_pd(_mm_cmplt_pd(s23, ntol)) << 2);
+    ((pos & 7) as u8, (neg & 7) as u8)
+}
+
+/// Portable version of the side masks above.
+#[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+#[inline(always)]
+fn side_masks(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
+    side_masks_scalar(p, plane, r)
+}
+
+/// The side masks one corner at a time (the reference for the SSE2 version).
+#[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "sse2"))))]
+#[inline(always)]
+fn side_masks_scalar(p: &PreparedTriangle, plane: &PreparedTriangle, r: Real) -> (u8, u8) {
     let tol = plane.k * r;
-    let o = plane.corners[0];
+    let (ox, oy, oz) = (plane.x[0], plane.y[0], plane.z[0]);
     let n = plane.n;
     let (mut pos, mut neg) = (0u8, 0u8);
-    for (i, x) in p.corners.iter().enumerate() {
-        let s = n.x * (x.x - o.x) + n.y * (x.y - o.y) + n.z * (x.z - o.z);
+    for i in 0..3 {
+        let s = n.x * (p.x[i] - ox) + n.y * (p.y[i] - oy) + n.z * (p.z[i] - oz);
         pos |= ((s > tol) as u8) << i;
         neg |= ((s < -tol) as u8) << i;
     }
@@ -113,12 +184,14 @@ fn signs((pos, neg): (u8, u8)) -> [i8; 3] {
 const STRADDLING: [[usize; 2]; 7] = [[0, 0], [2, 0], [0, 1], [1, 2], [1, 2], [0, 1], [2, 0]];
 
 /// Decides every edge-triangle crossing between triangles `a` and `b`, which must not share a
-/// vertex; see the module docs. A certified answer is the exact one, also under the symbolic
-/// perturbation of [`super::predicates::orient3d_sos`] (certified values are non-zero).
+/// vertex; see the module docs. A
+/// certified answer is the exact one, also under the symbolic perturbation of
+/// [`super::predicates::orient3d_sos`] (certified values are non-zero).
 #[inline]
 pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome {
     // Every corner difference is bounded in L1 by the reaches plus the distance of the c0s.
-    let r = a.reach + b.reach + l1(&(a.corners[0] - b.corners[0]));
+    let d0 = Vec3::new(a.x[0] - b.x[0], a.y[0] - b.y[0], a.z[0] - b.z[0]);
+    let r = a.reach + b.reach + l1(&d0);
     let ma = side_masks(a, b, r);
     if ma.0 == 7 || ma.1 == 7 {
         return PairOutcome::Apart;
@@ -135,17 +208,22 @@ pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome
     }
     let (ia, ib) = (STRADDLING[ma.0 as usize], STRADDLING[mb.0 as usize]);
     const NEXT: [usize; 3] = [1, 2, 0];
-    let edge = |t: &PreparedTriangle, i: usize| t.corners[NEXT[i]] - t.corners[i];
+    let edge = |t: &PreparedTriangle, i: usize| {
+        let j = NEXT[i];
+        Vec3::new(t.x[j] - t.x[i], t.y[j] - t.y[i], t.z[j] - t.z[i])
+    };
     let ea = [edge(a, ia[0]), edge(a, ia[1])];
     let eb = [edge(b, ib[0]), edge(b, ib[1])];
     // o[x][y]: orientation of a's straddling edge x with b's straddling edge y,
     // det[q - p, s - p, t - p] for a's edge (p, q) and b's edge (s, t).
     let mut pos = [[false; 2]; 2];
     for x in 0..2 {
+        let (px, py, pz) = (a.x[ia[x]], a.y[ia[x]], a.z[ia[x]]);
         for y in 0..2 {
-            let rr = b.corners[ib[y]] - a.corners[ia[x]];
+            let j = ib[y];
+            let rr = Vec3::new(b.x[j] - px, b.y[j] - py, b.z[j] - pz);
             let o = rr.dot(&eb[y].cross(&ea[x]));
-            let bound = EPS * r * a.edge_l1[ia[x]] * b.edge_l1[ib[y]];
+            let bound = EPS * r * a.edge_l1[ia[x]] * b.edge_l1[j];
             // NaN is never certified.
             let certified = o.abs() > bound;
             if !certified {
@@ -192,9 +270,36 @@ mod tests {
         mask
     }
 
+    /// The kernel's L1 radius of a pair (reaches plus the distance of the first corners).
+    fn pts_reach(p: &[Vec3; 6]) -> f64 {
+        let l1 = |v: Vec3| v.x.abs() + v.y.abs() + v.z.abs();
+        let reach = |q: &[Vec3]| l1(q[1] - q[0]).max(l1(q[2] - q[0]));
+        reach(&p[..3]) + reach(&p[3..]) + l1(p[0] - p[3])
+    }
+
+    fn prep(p: &[Vec3; 6]) -> (PreparedTriangle, PreparedTriangle) {
+        (
+            PreparedTriangle::new(&p[0], &p[1], &p[2]),
+            PreparedTriangle::new(&p[3], &p[4], &p[5]),
+        )
+    }
+
     fn check(p: &[Vec3; 6]) -> Result<(), TestCaseError> {
-        let a = PreparedTriangle::new(&p[0], &p[1], &p[2]);
-        let b = PreparedTriangle::new(&p[3], &p[4], &p[5]);
+        let (a, b) = prep(p);
+        for i in 0..3 {
+            prop_assert_eq!(a.corner(i), p[i]);
+            prop_assert_eq!(b.corner(i), p[3 + i]);
+        }
+        // The SSE2 plane sides equal the scalar ones, for the kernel's radius and for zero
+        // tolerance (the plain signs, exact ties included).
+        for r in [1.0, 0.0, pts_reach(p)] {
+            prop_assert_eq!(side_masks(&a, &b, r), side_masks_scalar(&a, &b, r));
+            prop_assert_eq!(side_masks(&b, &a, r), side_masks_scalar(&b, &a, r));
+        }
+        prop_assert_eq!(
+            a.plane().normal(),
+            CertifiedPlane::new(&p[0], &p[1], &p[2]).normal()
+        );
         let exact = exact_mask(p);
         match pair_crossings(&a, &b) {
             PairOutcome::Apart => prop_assert_eq!(exact, 0),
@@ -287,10 +392,7 @@ mod tests {
                     rng.random_range(-1.0..1.0),
                 )
             });
-            let (a, b) = (
-                PreparedTriangle::new(&p[0], &p[1], &p[2]),
-                PreparedTriangle::new(&p[3], &p[4], &p[5]),
-            );
+            let (a, b) = prep(&p);
             match pair_crossings(&a, &b) {
                 PairOutcome::Crossings(m) => {
                     assert_eq!(m, exact_mask(&p));
@@ -318,10 +420,7 @@ mod tests {
             v([0.3, 0.2, -1.0]),
             v([0.2, 0.3, -1.0]),
         ];
-        let (a, b) = (
-            PreparedTriangle::new(&p[0], &p[1], &p[2]),
-            PreparedTriangle::new(&p[3], &p[4], &p[5]),
-        );
+        let (a, b) = prep(&p);
         assert_eq!(
             pair_crossings(&a, &b),
             PairOutcome::Crossings(exact_mask(&p))
@@ -330,7 +429,7 @@ mod tests {
         // Far apart along z.
         let far: [Vec3; 6] =
             std::array::from_fn(|i| p[i] + Vec3::new(0.0, 0.0, 3.0 * (i / 3) as f64));
-        let b2 = PreparedTriangle::new(&far[3], &far[4], &far[5]);
-        assert_eq!(pair_crossings(&a, &b2), PairOutcome::Apart);
+        let (a2, b2) = prep(&far);
+        assert_eq!(pair_crossings(&a2, &b2), PairOutcome::Apart);
     }
 }
