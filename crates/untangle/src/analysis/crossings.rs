@@ -417,13 +417,7 @@ impl Ctx<'_> {
                 &pos[ty[2] as usize],
             );
             let ids = [i, j, ty[0], ty[1], ty[2]];
-            let crosses = if sp != 0 && sq != 0 {
-                straddling_edge_crosses_triangle_fast(p, q, pa, pb, pc, ids)
-            } else {
-                edge_may_overlap_projected(p, q, pa, pb, pc)
-                    && edge_crosses_triangle_filtered(p, q, pa, pb, pc, ids)
-            };
-            if crosses {
+            if edge_crosses_given_sides(p, q, [pa, pb, pc], ids, sp, sq) {
                 out.push(Crossing {
                     edge: e,
                     triangle: y,
@@ -467,19 +461,34 @@ impl Ctx<'_> {
             }
             let (p, q) = (&pos[i as usize], &pos[j as usize]);
             let ids = [i, j, tb[0], tb[1], tb[2]];
-            let crosses = if sp != 0 && sq != 0 {
-                straddling_edge_crosses_triangle_fast(p, q, pa, pb, pc, ids)
-            } else {
-                edge_may_overlap_projected(p, q, pa, pb, pc)
-                    && edge_crosses_triangle_filtered(p, q, pa, pb, pc, ids)
-            };
-            if crosses {
+            if edge_crosses_given_sides(p, q, [pa, pb, pc], ids, sp, sq) {
                 out.push(Crossing {
                     edge: e,
                     triangle: b,
                 });
             }
         }
+    }
+}
+
+/// Whether edge `pq` crosses triangle `t` (exact, with the analysis's tie rule; `ids` as in
+/// [`edge_crosses_triangle`]), given the certified sides `sp`, `sq` of its endpoints with respect
+/// to the triangle's plane (not both the same non-zero side): a straddling edge takes the
+/// floating-point fast path, an edge touching the plane the projected-overlap filter first.
+#[inline]
+fn edge_crosses_given_sides(
+    p: &Vec3,
+    q: &Vec3,
+    [pa, pb, pc]: [&Vec3; 3],
+    ids: [u32; 5],
+    sp: i8,
+    sq: i8,
+) -> bool {
+    if sp != 0 && sq != 0 {
+        straddling_edge_crosses_triangle_fast(p, q, pa, pb, pc, ids)
+    } else {
+        edge_may_overlap_projected(p, q, pa, pb, pc)
+            && edge_crosses_triangle_filtered(p, q, pa, pb, pc, ids)
     }
 }
 
