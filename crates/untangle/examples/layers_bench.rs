@@ -77,14 +77,7 @@ fn main() {
             }
             let (body, garments) =
                 untangle::scenes::outfit::arcsim_outfit(&shared, &all[..k], level).expect("data");
-            let inputs: Vec<GarmentInput> = garments
-                .iter()
-                .map(|m| GarmentInput {
-                    mesh: m,
-                    thickness: 0.01,
-                    weight: 1.0,
-                })
-                .collect();
+            let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
             let mut params = Params::default();
             params.fields.narrow_band = std::env::var_os("LAYERS_BENCH_FULL_GRID").is_none();
             if let Some(x) = std::env::var("LAYERS_BENCH_RELAX_SKIP")

@@ -177,14 +177,7 @@ fn main() {
             q(1.0)
         );
     }
-    let inputs: Vec<GarmentInput> = garments
-        .iter()
-        .map(|m| GarmentInput {
-            mesh: m,
-            thickness: 0.01,
-            weight: 1.0,
-        })
-        .collect();
+    let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
     let t = Instant::now();
     let res = untangle_with_fields(
         Some((&body, &bf)),

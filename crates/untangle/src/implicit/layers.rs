@@ -216,6 +216,20 @@ pub struct GarmentInput<'a> {
     pub weight: f64,
 }
 
+impl<'a> GarmentInput<'a> {
+    /// Every mesh of `meshes`, in their order, with the same thickness and weight.
+    pub fn all_alike(meshes: &'a [Mesh], thickness: f64, weight: f64) -> Vec<Self> {
+        meshes
+            .iter()
+            .map(|mesh| GarmentInput {
+                mesh,
+                thickness,
+                weight,
+            })
+            .collect()
+    }
+}
+
 /// Parameters of [`untangle_layers`].
 #[derive(Clone, Debug, Default)]
 pub struct Params {

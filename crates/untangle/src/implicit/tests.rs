@@ -1,7 +1,7 @@
 //! End-to-end tests of the layered untangling on scenes with analytic answers.
 
 use super::field::LayerField;
-use super::layers::{untangle_layers, verify, FieldParams, GarmentInput, Params};
+use super::layers::{untangle_layers, verify, FieldParams, GarmentInput, Params, Verification};
 use super::operators::{field_vec, Operator};
 use super::projection::{project_layer, Composer, Layer, ProjectionParams};
 use super::shapes::{cylinder_mesh, sphere_mesh, CylinderField, SphereField};
@@ -277,26 +277,38 @@ fn shared_data() -> Option<std::path::PathBuf> {
     Some(shared)
 }
 
+/// The ARCSim body and garments `names` (innermost first) at subdivision `level`, placed to
+/// overlap deeply (`scenes::outfit::arcsim_outfit`), with the verification of that input.
+fn tangled_outfit(
+    shared: &std::path::Path,
+    names: &[&str],
+    level: usize,
+) -> (crate::mesh::Mesh, Vec<crate::mesh::Mesh>, Verification) {
+    let (body, garments) = crate::scenes::outfit::arcsim_outfit(shared, names, level).unwrap();
+    let before: Vec<Vec<Vec3>> = garments.iter().map(|m| m.positions.clone()).collect();
+    let v0 = verify_outfit(&body, &garments, &before);
+    (body, garments, v0)
+}
+
+/// [`verify`] of the garments at `positions` over `body`.
+fn verify_outfit(
+    body: &crate::mesh::Mesh,
+    garments: &[crate::mesh::Mesh],
+    positions: &[Vec<Vec3>],
+) -> Verification {
+    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
+    verify(Some(body), &refs, positions).unwrap()
+}
+
 #[test]
 fn arcsim_five_layers_are_intersection_free() {
     // Body, pants, dress, T-shirt, jacket, all deeply intersecting (Table 2's 5 layers).
     let Some(shared) = shared_data() else { return };
-    let (body, garments) =
-        crate::scenes::outfit::arcsim_outfit(&shared, crate::scenes::outfit::GARMENTS, 1).unwrap();
-    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
-    let before: Vec<Vec<Vec3>> = garments.iter().map(|m| m.positions.clone()).collect();
-    let v0 = verify(Some(&body), &refs, &before).unwrap();
+    let (body, garments, v0) = tangled_outfit(&shared, crate::scenes::outfit::GARMENTS, 1);
     assert!(v0.between_layers > 100 && v0.with_body > 100, "{v0:?}");
-    let inputs: Vec<GarmentInput> = garments
-        .iter()
-        .map(|m| GarmentInput {
-            mesh: m,
-            thickness: 0.01,
-            weight: 1.0,
-        })
-        .collect();
+    let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
     let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
-    let v = verify(Some(&body), &refs, &out.positions).unwrap();
+    let v = verify_outfit(&body, &garments, &out.positions);
     eprintln!(
         "arcsim 5 layers: before {v0:?}, after {v:?}, {:?}",
         out.pair_repair
@@ -308,25 +320,14 @@ fn arcsim_five_layers_are_intersection_free() {
 #[test]
 fn arcsim_pants_and_tshirt_over_the_body() {
     let Some(shared) = shared_data() else { return };
-    let (body, garments) =
-        crate::scenes::outfit::arcsim_outfit(&shared, &["pants3", "tshirt"], 2).unwrap();
-    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
-    let before: Vec<Vec<Vec3>> = garments.iter().map(|m| m.positions.clone()).collect();
-    let v0 = verify(Some(&body), &refs, &before).unwrap();
+    let (body, garments, v0) = tangled_outfit(&shared, &["pants3", "tshirt"], 2);
     assert!(
         v0.between_layers > 0 && v0.with_body > 0,
         "the scene starts tangled"
     );
-    let inputs: Vec<GarmentInput> = garments
-        .iter()
-        .map(|m| GarmentInput {
-            mesh: m,
-            thickness: 0.01,
-            weight: 1.0,
-        })
-        .collect();
+    let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
     let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
-    let v = verify(Some(&body), &refs, &out.positions).unwrap();
+    let v = verify_outfit(&body, &garments, &out.positions);
     eprintln!("arcsim pants3+tshirt: before {v0:?}, after {v:?}");
     assert!(v.is_clean(), "{v:?}");
 }
@@ -470,14 +471,7 @@ fn arcsim_narrow_band_grids_do_not_change_the_result() {
         fields[0].push(a);
         fields[1].push(b);
     }
-    let inputs: Vec<GarmentInput> = g
-        .iter()
-        .map(|mesh| GarmentInput {
-            mesh,
-            thickness: 0.01,
-            weight: 1.0,
-        })
-        .collect();
+    let inputs = GarmentInput::all_alike(&g, 0.01, 1.0);
     let run = |f: &[super::field::GarmentField]| {
         super::layers::untangle_with_fields(
             Some((&body, &bf)),
@@ -624,26 +618,15 @@ fn arcsim_self_guard_adds_no_self_intersection() {
     // has none that the input did not have, and still none between layers or with the body
     // (all by the global intersection analysis, an independent exact check).
     let Some(shared) = shared_data() else { return };
-    let (body, garments) =
-        crate::scenes::outfit::arcsim_outfit(&shared, crate::scenes::outfit::GARMENTS, 1).unwrap();
-    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
-    let before: Vec<Vec<Vec3>> = garments.iter().map(|m| m.positions.clone()).collect();
-    let v0 = verify(Some(&body), &refs, &before).unwrap();
-    let inputs: Vec<GarmentInput> = garments
-        .iter()
-        .map(|m| GarmentInput {
-            mesh: m,
-            thickness: 0.01,
-            weight: 1.0,
-        })
-        .collect();
+    let (body, garments, v0) = tangled_outfit(&shared, crate::scenes::outfit::GARMENTS, 1);
+    let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
     let mut p = Params::default();
     let off = untangle_layers(Some(&body), &inputs, &p, &|_| {}).unwrap();
-    let v_off = verify(Some(&body), &refs, &off.positions).unwrap();
+    let v_off = verify_outfit(&body, &garments, &off.positions);
     p.projection.prevent_self_intersections = true;
     p.repair.prevent_self_intersections = true;
     let on = untangle_layers(Some(&body), &inputs, &p, &|_| {}).unwrap();
-    let v_on = verify(Some(&body), &refs, &on.positions).unwrap();
+    let v_on = verify_outfit(&body, &garments, &on.positions);
     eprintln!("self-intersections: input {v0:?}; guards off {v_off:?}; on {v_on:?}");
     assert!(
         v_off.self_intersections > v0.self_intersections,
@@ -831,17 +814,9 @@ fn arcsim_table3_separation_within_two_percent_at_table2_size() {
     let Some(shared) = shared_data() else { return };
     let (body, garments) =
         crate::scenes::outfit::arcsim_outfit(&shared, crate::scenes::outfit::GARMENTS, 4).unwrap();
-    let inputs: Vec<GarmentInput> = garments
-        .iter()
-        .map(|m| GarmentInput {
-            mesh: m,
-            thickness: 0.01,
-            weight: 1.0,
-        })
-        .collect();
+    let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
     let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
-    let refs: Vec<&crate::mesh::Mesh> = garments.iter().collect();
-    let v = verify(Some(&body), &refs, &out.positions).unwrap();
+    let v = verify_outfit(&body, &garments, &out.positions);
     assert!(v.is_clean(), "{v:?}");
     let seps = super::layers::measure_separation(Some(&body), &inputs, &out, 0.0);
     for s in seps.iter().flatten() {
