@@ -651,91 +651,22 @@ mod tests {
         assert!(res.relative_residual > 1e-14);
     }
 
-    #[test]
-    fn translation_correction_is_a_galerkin_projection() {
-        for seed in 0..6 {
-            let n = 30 + 5 * seed as usize;
-            let (p, a, b) = random_system(n, seed);
-            let mut filter = vec![Filter::Free; n];
-            if seed % 2 == 1 {
-                filter[2] = Filter::Fixed;
-                filter[7] = Filter::Normal(Vec3::new(0.6, 0.0, 0.8));
-            }
-            let z = vec![Vec3::zeros(); n];
-            let mut exact = vec![Vec3::zeros(); n];
-            let settings = PcgSettings {
-                tolerance: 1e-13,
-                absolute: 0.0,
-                max_iterations: 10_000,
-            };
-            assert!(
-                solve(
-                    &p,
-                    &a,
-                    &b,
-                    &filter,
-                    &z,
-                    &mut exact,
-                    settings,
-                    Preconditioner::BlockJacobi(None)
-                )
-                .converged
-            );
-            let mut rng = ChaCha8Rng::seed_from_u64(seed + 50);
-            // An approximation whose error is a filtered translation plus noise.
-            let shift = Vec3::new(0.3, -0.7, 0.2);
-            let mut x: Vec<Vec3> = (0..n)
-                .map(|i| {
-                    let noise = Vec3::new(rng.random(), rng.random(), rng.random()) * 1e-3;
-                    exact[i] + filter[i].apply(shift + noise)
-                })
-                .collect();
-            let energy_error = |x: &[Vec3]| {
-                let e: Vec<Vec3> = (0..n).map(|i| x[i] - exact[i]).collect();
-                let mut ae = vec![Vec3::zeros(); n];
-                a.mul(&p, &e, &mut ae);
-                dot(&e, &ae)
-            };
-            let before = energy_error(&x);
-            let c = correct_translations(&p, &a, &b, &filter, &mut x);
-            let after = energy_error(&x);
-            assert!(
-                after <= before * (1.0 + 1e-12),
-                "seed {seed}: {after} > {before}"
-            );
-            assert!(after < 1e-3 * before, "seed {seed}: {after} vs {before}");
-            assert!((c + shift).norm() < 0.01, "seed {seed}: {c}");
-            // The filtered residual has no component along the filtered translations.
-            let mut ax = vec![Vec3::zeros(); n];
-            a.mul(&p, &x, &mut ax);
-            let r: Vec<Vec3> = (0..n).map(|i| filter[i].apply(b[i] - ax[i])).collect();
-            let scale: f64 = r.iter().map(|v| v.norm()).sum::<f64>() + 1e-300;
-            for e in [Vec3::x(), Vec3::y(), Vec3::z()] {
-                let u: Vec<Vec3> = filter.iter().map(|f| f.apply(e)).collect();
-                assert!(dot(&u, &r).abs() < 1e-10 * scale, "seed {seed}");
-            }
-            // Constrained directions are untouched.
-            if seed % 2 == 1 {
-                assert_eq!(x[2], exact[2]);
-                let nn = Vec3::new(0.6, 0.0, 0.8);
-                assert!((nn.dot(&x[7]) - nn.dot(&exact[7])).abs() < 1e-12);
-            }
-        }
+    /// A random system (`random_system(30 + 5 seed, seed)`), constrained for odd seeds (vertex 2
+    /// fixed, vertex 7 free only in a plane), with its exact solution (CG to 1e-13): the oracle
+    /// of the Galerkin corrections below.
+    struct CorrectionCase {
+        n: usize,
+        p: BsrPattern,
+        a: BsrMatrix,
+        b: Vec<Vec3>,
+        filter: Vec<Filter>,
+        exact: Vec<Vec3>,
     }
 
-    /// Oracle: the exact solution (CG to 1e-13). An approximation whose error is a filtered
-    /// rigid motion (translation plus rotation about a random point) plus noise: the correction
-    /// removes nearly all of the error, never increases its energy norm, leaves a residual with
-    /// no force and no torque, and keeps the constrained directions.
-    #[test]
-    fn rigid_motion_correction_is_a_galerkin_projection() {
-        for seed in 0..6 {
+    impl CorrectionCase {
+        fn new(seed: u64) -> Self {
             let n = 30 + 5 * seed as usize;
             let (p, a, b) = random_system(n, seed);
-            let mut rng = ChaCha8Rng::seed_from_u64(seed + 70);
-            let pos: Vec<Vec3> = (0..n)
-                .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()) * 2.0)
-                .collect();
             let mut filter = vec![Filter::Free; n];
             if seed % 2 == 1 {
                 filter[2] = Filter::Fixed;
@@ -750,6 +681,92 @@ mod tests {
             };
             let pre = Preconditioner::BlockJacobi(None);
             assert!(solve(&p, &a, &b, &filter, &z, &mut exact, settings, pre).converged);
+            CorrectionCase {
+                n,
+                p,
+                a,
+                b,
+                filter,
+                exact,
+            }
+        }
+
+        /// `e^T A e` for the error `e = x - exact`.
+        fn energy_error(&self, x: &[Vec3]) -> f64 {
+            let e: Vec<Vec3> = (0..self.n).map(|i| x[i] - self.exact[i]).collect();
+            let mut ae = vec![Vec3::zeros(); self.n];
+            self.a.mul(&self.p, &e, &mut ae);
+            dot(&e, &ae)
+        }
+
+        /// The filtered residual `S (b - A x)` and the sum of its norms (a scale for checks).
+        fn filtered_residual(&self, x: &[Vec3]) -> (Vec<Vec3>, f64) {
+            let mut ax = vec![Vec3::zeros(); self.n];
+            self.a.mul(&self.p, x, &mut ax);
+            let r: Vec<Vec3> = (0..self.n)
+                .map(|i| self.filter[i].apply(self.b[i] - ax[i]))
+                .collect();
+            let scale = r.iter().map(|v| v.norm()).sum::<f64>() + 1e-300;
+            (r, scale)
+        }
+
+        /// The constrained directions of `x` are those of the exact solution.
+        fn assert_constraints_kept(&self, x: &[Vec3], seed: u64) {
+            if seed % 2 == 1 {
+                assert_eq!(x[2], self.exact[2], "seed {seed}");
+                let nn = Vec3::new(0.6, 0.0, 0.8);
+                assert!((nn.dot(&x[7]) - nn.dot(&self.exact[7])).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn translation_correction_is_a_galerkin_projection() {
+        for seed in 0..6 {
+            let c = CorrectionCase::new(seed);
+            let (n, filter, exact) = (c.n, &c.filter, &c.exact);
+            let mut rng = ChaCha8Rng::seed_from_u64(seed + 50);
+            // An approximation whose error is a filtered translation plus noise.
+            let shift = Vec3::new(0.3, -0.7, 0.2);
+            let mut x: Vec<Vec3> = (0..n)
+                .map(|i| {
+                    let noise = Vec3::new(rng.random(), rng.random(), rng.random()) * 1e-3;
+                    exact[i] + filter[i].apply(shift + noise)
+                })
+                .collect();
+            let before = c.energy_error(&x);
+            let t = correct_translations(&c.p, &c.a, &c.b, filter, &mut x);
+            let after = c.energy_error(&x);
+            assert!(
+                after <= before * (1.0 + 1e-12),
+                "seed {seed}: {after} > {before}"
+            );
+            assert!(after < 1e-3 * before, "seed {seed}: {after} vs {before}");
+            assert!((t + shift).norm() < 0.01, "seed {seed}: {t}");
+            // The filtered residual has no component along the filtered translations.
+            let (r, scale) = c.filtered_residual(&x);
+            for e in [Vec3::x(), Vec3::y(), Vec3::z()] {
+                let u: Vec<Vec3> = filter.iter().map(|f| f.apply(e)).collect();
+                assert!(dot(&u, &r).abs() < 1e-10 * scale, "seed {seed}");
+            }
+            // Constrained directions are untouched.
+            c.assert_constraints_kept(&x, seed);
+        }
+    }
+
+    /// Oracle: the exact solution (CG to 1e-13). An approximation whose error is a filtered
+    /// rigid motion (translation plus rotation about a random point) plus noise: the correction
+    /// removes nearly all of the error, never increases its energy norm, leaves a residual with
+    /// no force and no torque, and keeps the constrained directions.
+    #[test]
+    fn rigid_motion_correction_is_a_galerkin_projection() {
+        for seed in 0..6 {
+            let c = CorrectionCase::new(seed);
+            let (n, filter, exact) = (c.n, &c.filter, &c.exact);
+            let mut rng = ChaCha8Rng::seed_from_u64(seed + 70);
+            let pos: Vec<Vec3> = (0..n)
+                .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()) * 2.0)
+                .collect();
             let shift = Vec3::new(0.3, -0.7, 0.2);
             let spin = Vec3::new(-0.4, 0.9, 0.5);
             let centre = Vec3::new(0.5, 1.5, -0.3);
@@ -759,29 +776,20 @@ mod tests {
                     exact[i] + filter[i].apply(shift + spin.cross(&(pos[i] - centre)) + noise)
                 })
                 .collect();
-            let energy_error = |x: &[Vec3]| {
-                let e: Vec<Vec3> = (0..n).map(|i| x[i] - exact[i]).collect();
-                let mut ae = vec![Vec3::zeros(); n];
-                a.mul(&p, &e, &mut ae);
-                dot(&e, &ae)
-            };
-            let before = energy_error(&x);
+            let before = c.energy_error(&x);
             let mut only_translations = x.clone();
-            correct_translations(&p, &a, &b, &filter, &mut only_translations);
-            let c = correct_rigid_motions(&p, &a, &b, &filter, &pos, &mut x);
-            assert!(c.is_some(), "seed {seed}: six independent modes");
-            let after = energy_error(&x);
+            correct_translations(&c.p, &c.a, &c.b, filter, &mut only_translations);
+            let coef = correct_rigid_motions(&c.p, &c.a, &c.b, filter, &pos, &mut x);
+            assert!(coef.is_some(), "seed {seed}: six independent modes");
+            let after = c.energy_error(&x);
             assert!(after <= before * (1.0 + 1e-12), "seed {seed}");
             assert!(after < 1e-3 * before, "seed {seed}: {after} vs {before}");
             // The translations alone cannot remove a rotation error.
             assert!(
-                energy_error(&only_translations) > 10.0 * after,
+                c.energy_error(&only_translations) > 10.0 * after,
                 "seed {seed}"
             );
-            let mut ax = vec![Vec3::zeros(); n];
-            a.mul(&p, &x, &mut ax);
-            let r: Vec<Vec3> = (0..n).map(|i| filter[i].apply(b[i] - ax[i])).collect();
-            let scale: f64 = r.iter().map(|v| v.norm()).sum::<f64>() + 1e-300;
+            let (r, scale) = c.filtered_residual(&x);
             let c0 = pos.iter().sum::<Vec3>() / n as f64;
             for e in [Vec3::x(), Vec3::y(), Vec3::z()] {
                 let ut: Vec<Vec3> = filter.iter().map(|f| f.apply(e)).collect();
@@ -794,11 +802,7 @@ mod tests {
                     "seed {seed}: torque"
                 );
             }
-            if seed % 2 == 1 {
-                assert_eq!(x[2], exact[2]);
-                let nn = Vec3::new(0.6, 0.0, 0.8);
-                assert!((nn.dot(&x[7]) - nn.dot(&exact[7])).abs() < 1e-12);
-            }
+            c.assert_constraints_kept(&x, seed);
         }
     }
 
