@@ -21,9 +21,13 @@
 //! the corrected surfaces, split by the length of the merged run.
 use std::path::PathBuf;
 use std::time::Instant;
+use untangle::geom::Vec3;
 use untangle::implicit::layers::Stage;
+use untangle::implicit::layers::{build_field, measure_separation, Untangled};
+use untangle::implicit::separation::{MeshDistance, Separation};
 use untangle::implicit::GarmentField;
 use untangle::implicit::*;
+use untangle::mesh::Mesh;
 
 /// CPU time (user + system, all threads) of this process so far, seconds (Linux `/proc`; 0
 /// elsewhere). The machine is shared, so CPU time is reported beside wall-clock time.
@@ -160,27 +164,10 @@ fn main() {
                     v_in.between_layers, v_in.with_body, v_in.self_intersections
                 );
                 eprintln!("  pairs {:?}", out.pair_repair);
-                for s in untangle::implicit::layers::measure_separation(
-                    Some(&body),
-                    &inputs,
-                    &out,
-                    params.body_thickness,
-                )
-                .into_iter()
-                .flatten()
-                {
-                    eprintln!(
-                        "  separation {} over {}: expected {:.4}, {} vertices, mean {:.5}, median {:.5}, rel. error of mean {:.2}%; face to face: {} vertices, mean {:.5}, rel. error {:.2}%; two-sided: {} distances, mean {:.5}, median {:.5}, rel. error {:.2}%; unrepaired two-sided: {} distances, mean {:.5}, rel. error {:.2}%",
-                        s.layer, s.against, s.expected, s.count, s.mean, s.median, 100.0 * s.relative_error,
-                        s.face.as_ref().map_or(0, |f| f.count), s.face.as_ref().map_or(0.0, |f| f.mean),
-                        s.face.as_ref().map_or(0.0, |f| 100.0 * f.relative_error),
-                        s.two_sided.as_ref().map_or(0, |f| f.count), s.two_sided.as_ref().map_or(0.0, |f| f.mean),
-                        s.two_sided.as_ref().map_or(0.0, |f| f.median),
-                        s.two_sided.as_ref().map_or(0.0, |f| 100.0 * f.relative_error),
-                        s.unrepaired.as_ref().map_or(0, |f| f.count), s.unrepaired.as_ref().map_or(0.0, |f| f.mean),
-                        s.unrepaired.as_ref().map_or(0.0, |f| 100.0 * f.relative_error)
-                    );
-                }
+                print_separations(
+                    "",
+                    &measure_separation(Some(&body), &inputs, &out, params.body_thickness),
+                );
                 let mut noop = params.clone();
                 noop.repair.steps = 0;
                 noop.repair.pair_rounds = 0;
@@ -190,238 +177,18 @@ fn main() {
                     "  projection only: between {}, with body {}, self {}",
                     v2.between_layers, v2.with_body, v2.self_intersections
                 );
-                for s in untangle::implicit::layers::measure_separation(
-                    Some(&body),
-                    &inputs,
-                    &o2,
-                    params.body_thickness,
-                )
-                .into_iter()
-                .flatten()
-                {
-                    eprintln!(
-                        "  projection only: separation {} over {}: expected {:.4}, {} vertices, mean {:.5}, median {:.5}, rel. error of mean {:.2}%; face to face: {} vertices, mean {:.5}, rel. error {:.2}%; two-sided: {} distances, mean {:.5}, median {:.5}, rel. error {:.2}%; unrepaired two-sided: {} distances, mean {:.5}, rel. error {:.2}%",
-                        s.layer, s.against, s.expected, s.count, s.mean, s.median, 100.0 * s.relative_error,
-                        s.face.as_ref().map_or(0, |f| f.count), s.face.as_ref().map_or(0.0, |f| f.mean),
-                        s.face.as_ref().map_or(0.0, |f| 100.0 * f.relative_error),
-                        s.two_sided.as_ref().map_or(0, |f| f.count), s.two_sided.as_ref().map_or(0.0, |f| f.mean),
-                        s.two_sided.as_ref().map_or(0.0, |f| f.median),
-                        s.two_sided.as_ref().map_or(0.0, |f| 100.0 * f.relative_error),
-                        s.unrepaired.as_ref().map_or(0, |f| f.count), s.unrepaired.as_ref().map_or(0.0, |f| f.mean),
-                        s.unrepaired.as_ref().map_or(0.0, |f| 100.0 * f.relative_error)
-                    );
-                }
+                print_separations(
+                    "projection only: ",
+                    &measure_separation(Some(&body), &inputs, &o2, params.body_thickness),
+                );
                 for r in &out.repair {
                     eprintln!("  repair {r:?}");
                 }
                 if std::env::var_os("LAYERS_BENCH_GAP_CHECK").is_some() {
-                    // Where does the gap error come from? At the face-to-face contact vertices
-                    // p of garment k (projection only): the mesh gap d to garment k-1, the
-                    // implicit gap f̂_{k-1}(p) / |∇f̂_{k-1}(p)| (the lower layer's corrected
-                    // surface seen from p), the lower layer's corrected value at the closest
-                    // mesh point q (0 if its mesh lies on its target surface), and the share of
-                    // the lower triangle's vertices that are in contact.
-                    use untangle::implicit::field::LayerField;
-                    use untangle::implicit::projection::{Composer, Layer};
-                    let centre = body.positions.iter().sum::<untangle::geom::Vec3>()
-                        / body.positions.len() as f64;
-                    let bf = untangle::implicit::layers::build_field(
-                        &body,
-                        &centre,
-                        true,
-                        &params.fields,
-                    )
-                    .unwrap();
-                    let gf: Vec<GarmentField> = garments
-                        .iter()
-                        .map(|g| {
-                            untangle::implicit::layers::build_field(
-                                g,
-                                &centre,
-                                false,
-                                &params.fields,
-                            )
-                            .unwrap()
-                        })
-                        .collect();
-                    let mut lay = vec![Layer {
-                        field: &bf as &dyn LayerField,
-                        weight: f64::INFINITY,
-                        thickness: params.body_thickness,
-                    }];
-                    for (g, f) in inputs.iter().zip(&gf) {
-                        lay.push(Layer {
-                            field: f,
-                            weight: g.weight,
-                            thickness: g.thickness,
-                        });
-                    }
-                    let comp = Composer::new(&lay)
-                        .unwrap()
-                        .with_scaled_offsets(params.projection.scaled_offsets);
-                    for k in 1..garments.len() {
-                        let (me, lo) = (k + 1, k);
-                        let md = untangle::implicit::separation::MeshDistance::new(
-                            &o2.positions[k - 1],
-                            &garments[k - 1].triangles,
-                        );
-                        let mut acc = [0.0f64; 8];
-                        let mut n = 0usize;
-                        let mut hist = [0usize; 6];
-                        let mut gaps: Vec<(f64, f64, f64, f64, f64, f64)> = Vec::new();
-                        let mut by_run = [(0usize, 0.0f64, 0.0f64); 5];
-                        for ((p, run), &act) in o2.positions[k]
-                            .iter()
-                            .zip(&o2.projections[k].run)
-                            .zip(&o2.projections[k].active)
-                        {
-                            if !(run.0 < me && act & (1 << (me - 1)) != 0) {
-                                continue;
-                            }
-                            let Some((d, a)) = md.distance_and_alignment_within(p, 0.04) else {
-                                continue;
-                            };
-                            if a < 0.99 {
-                                continue;
-                            }
-                            let (q, t) = md.closest_within(p, 0.04).unwrap();
-                            let (Some(cu), Some(cl), Some(cq)) = (
-                                comp.evaluate(me, p),
-                                comp.evaluate(lo, p),
-                                comp.evaluate(lo, &q),
-                            ) else {
-                                continue;
-                            };
-                            let tri = garments[k - 1].triangles[t];
-                            let incontact = tri
-                                .iter()
-                                .filter(|&&v| o2.projections[k - 1].run[v as usize] != (lo, lo))
-                                .count() as f64
-                                / 3.0;
-                            let tau: f64 = tri
-                                .iter()
-                                .map(|&v| {
-                                    let v = v as usize;
-                                    let pr = &o2.projections[k - 1];
-                                    pr.iso[v]
-                                })
-                                .sum::<f64>()
-                                / 3.0;
-                            let gap_impl = cl.value / cl.gradient.norm();
-                            n += 1;
-                            acc[0] += d;
-                            acc[1] += gap_impl;
-                            acc[2] += cq.value;
-                            acc[3] += incontact;
-                            acc[4] += cu.value;
-                            acc[5] += tau;
-                            acc[6] += cl.gradient.norm();
-                            acc[7] += d - gap_impl;
-                            let e = ((d - gap_impl) / 0.001).abs().floor() as usize;
-                            hist[e.min(5)] += 1;
-                            let res: f64 = tri
-                                .iter()
-                                .map(|&v| o2.projections[k - 1].residual[v as usize])
-                                .fold(0.0, f64::max);
-                            let (gl, gu) = (
-                                lay[lo].field.field(p).unwrap().1,
-                                lay[me].field.field(p).unwrap().1,
-                            );
-                            let cos = gl.dot(&gu) / (gl.norm() * gu.norm());
-                            gaps.push((d, gap_impl, res, cos, incontact, cq.value));
-                            let rl = (cu.run.1 - cu.run.0 + 1).min(4);
-                            by_run[rl].0 += 1;
-                            by_run[rl].1 += gap_impl;
-                            by_run[rl].2 += d;
-                        }
-                        let nn = n.max(1) as f64;
-                        eprintln!(
-                            "  gap check {} over {}: {n} face-to-face contact vertices; mean mesh gap {:.5}, implicit gap {:.5} (|grad| {:.3}), f̂_lower at closest mesh point {:+.5}, lower vertices in contact {:.2}, lower eps {:+.5}, f̂_upper at p {:+.6}; |mesh-implicit| histogram per mm {:?}",
-                            garments[k].name,
-                            garments[k - 1].name,
-                            acc[0] / nn,
-                            acc[1] / nn,
-                            acc[6] / nn,
-                            acc[2] / nn,
-                            acc[3] / nn,
-                            acc[5] / nn,
-                            acc[4] / nn,
-                            hist
-                        );
-                        let med = |mut x: Vec<f64>| {
-                            x.sort_by(f64::total_cmp);
-                            x.get(x.len() / 2).copied().unwrap_or(0.0)
-                        };
-                        let cosm = gaps.iter().map(|g| g.3).sum::<f64>() / nn;
-                        eprintln!(
-                            "    medians: mesh gap {:.5}, implicit {:.5}; mean cos(grad lower, grad upper) {:.3} (t/cos(θ/2) = {:.5}); outliers (|mesh-implicit| > 3 mm): {}",
-                            med(gaps.iter().map(|g| g.0).collect()),
-                            med(gaps.iter().map(|g| g.1).collect()),
-                            cosm,
-                            0.01 / ((1.0 + cosm) / 2.0).sqrt(),
-                            gaps.iter().filter(|g| (g.0 - g.1).abs() > 0.003).count()
-                        );
-                        for g in gaps.iter().filter(|g| (g.0 - g.1).abs() > 0.003).take(8) {
-                            eprintln!("      outlier: mesh {:.5} implicit {:.5} lower residual {:.2e} cos {:.3} lower in contact {:.2} f̂_lower(q) {:+.5}", g.0, g.1, g.2, g.3, g.4, g.5);
-                        }
-                        for (rl, &(n, gi, gm)) in by_run.iter().enumerate().filter(|x| x.1 .0 > 0) {
-                            eprintln!("    run of {rl} layers at p: {n} vertices, mean implicit gap {:.5}, mesh gap {:.5}", gi / n as f64, gm / n as f64);
-                        }
-                        let unc = o2.projections[k - 1].unconverged;
-                        eprintln!(
-                            "    lower layer unconverged vertices {unc}, passes {}",
-                            o2.projections[k - 1].iterations
-                        );
-                    }
+                    gap_check(&body, &garments, &inputs, &params, &o2);
                 }
                 if std::env::var_os("LAYERS_BENCH_FIELD_CHECK").is_some() {
-                    // Is the gap error in the fields? At the contact vertices of garment k
-                    // (projection only), the field of garment k-1: value (the offset in field
-                    // units), gradient norm, and the measured mesh distance.
-                    use untangle::implicit::field::LayerField;
-                    let centre = body.positions.iter().sum::<untangle::geom::Vec3>()
-                        / body.positions.len() as f64;
-                    for k in 1..garments.len() {
-                        let f = untangle::implicit::layers::build_field(
-                            &garments[k - 1],
-                            &centre,
-                            false,
-                            &params.fields,
-                        )
-                        .unwrap();
-                        let md = untangle::implicit::separation::MeshDistance::new(
-                            &o2.positions[k - 1],
-                            &garments[k - 1].triangles,
-                        );
-                        let me = k + 1;
-                        let (mut n, mut sv, mut sg, mut sd) = (0usize, 0.0, 0.0, 0.0);
-                        for ((p, run), &act) in o2.positions[k]
-                            .iter()
-                            .zip(&o2.projections[k].run)
-                            .zip(&o2.projections[k].active)
-                        {
-                            if !(run.0 < me && act & (1 << (me - 1)) != 0) {
-                                continue;
-                            }
-                            let (Some((v, g)), Some((d, a))) =
-                                (f.field(p), md.distance_and_alignment_within(p, 0.04))
-                            else {
-                                continue;
-                            };
-                            if a < 0.99 {
-                                continue;
-                            }
-                            n += 1;
-                            sv += v;
-                            sg += g.norm();
-                            sd += d;
-                        }
-                        let n = n.max(1) as f64;
-                        eprintln!(
-                            "  field check {} over {}: face-to-face contact vertices {n}, mean f_below {:.5}, mean |grad f_below| {:.3}, mean distance {:.5}",
-                            garments[k].name, garments[k - 1].name, sv / n, sg / n, sd / n
-                        );
-                    }
+                    field_check(&body, &garments, &params, &o2);
                 }
             }
             eprintln!(
@@ -490,5 +257,205 @@ fn main() {
             }
             let _ = total;
         }
+    }
+}
+
+/// Prints the measured separations (`label` before each line).
+fn print_separations(label: &str, seps: &[Option<Separation>]) {
+    for s in seps.iter().flatten() {
+        let (face, two, unrep) = (
+            s.face.as_deref(),
+            s.two_sided.as_deref(),
+            s.unrepaired.as_deref(),
+        );
+        eprintln!(
+            "  {label}separation {} over {}: expected {:.4}, {} vertices, mean {:.5}, median {:.5}, rel. error of mean {:.2}%; face to face: {} vertices, mean {:.5}, rel. error {:.2}%; two-sided: {} distances, mean {:.5}, median {:.5}, rel. error {:.2}%; unrepaired two-sided: {} distances, mean {:.5}, rel. error {:.2}%",
+            s.layer, s.against, s.expected, s.count, s.mean, s.median, 100.0 * s.relative_error,
+            face.map_or(0, |f| f.count), face.map_or(0.0, |f| f.mean),
+            face.map_or(0.0, |f| 100.0 * f.relative_error),
+            two.map_or(0, |f| f.count), two.map_or(0.0, |f| f.mean),
+            two.map_or(0.0, |f| f.median),
+            two.map_or(0.0, |f| 100.0 * f.relative_error),
+            unrep.map_or(0, |f| f.count), unrep.map_or(0.0, |f| f.mean),
+            unrep.map_or(0.0, |f| 100.0 * f.relative_error)
+        );
+    }
+}
+
+/// The face-to-face contact vertices of garment `k` (its layer `k + 1`) with garment `k - 1` in
+/// `out`: vertices whose run reaches below and whose layer below is active, within 4 cm of the
+/// lower mesh `md` and facing it (alignment >= 0.99); with their mesh distance.
+fn contact_vertices<'a>(
+    out: &'a Untangled,
+    k: usize,
+    md: &'a MeshDistance,
+) -> impl Iterator<Item = (&'a Vec3, f64)> + 'a {
+    let me = k + 1;
+    out.positions[k]
+        .iter()
+        .zip(&out.projections[k].run)
+        .zip(&out.projections[k].active)
+        .filter(move |((_, run), &act)| run.0 < me && act & (1 << (me - 1)) != 0)
+        .filter_map(move |((p, _), _)| {
+            let (d, a) = md.distance_and_alignment_within(p, 0.04)?;
+            (a >= 0.99).then_some((p, d))
+        })
+}
+
+/// The centroid of the body, which orients the garments' normals (as in `untangle_layers`).
+fn body_centre(body: &Mesh) -> Vec3 {
+    body.positions.iter().sum::<Vec3>() / body.positions.len() as f64
+}
+
+/// `LAYERS_BENCH_GAP_CHECK`: where does the gap error come from? At the face-to-face contact
+/// vertices p of garment k in the projection-only output `o2`: the mesh gap d to garment k-1,
+/// the implicit gap f̂_{k-1}(p) / |∇f̂_{k-1}(p)| (the lower layer's corrected surface seen from
+/// p), the lower layer's corrected value at the closest mesh point q (0 if its mesh lies on its
+/// target surface), and the share of the lower triangle's vertices that are in contact.
+fn gap_check(
+    body: &Mesh,
+    garments: &[Mesh],
+    inputs: &[GarmentInput],
+    params: &Params,
+    o2: &Untangled,
+) {
+    use untangle::implicit::field::LayerField;
+    use untangle::implicit::projection::{Composer, Layer};
+    let centre = body_centre(body);
+    let bf = build_field(body, &centre, true, &params.fields).unwrap();
+    let gf: Vec<GarmentField> = garments
+        .iter()
+        .map(|g| build_field(g, &centre, false, &params.fields).unwrap())
+        .collect();
+    let mut lay = vec![Layer {
+        field: &bf as &dyn LayerField,
+        weight: f64::INFINITY,
+        thickness: params.body_thickness,
+    }];
+    for (g, f) in inputs.iter().zip(&gf) {
+        lay.push(Layer {
+            field: f,
+            weight: g.weight,
+            thickness: g.thickness,
+        });
+    }
+    let comp = Composer::new(&lay)
+        .unwrap()
+        .with_scaled_offsets(params.projection.scaled_offsets);
+    for k in 1..garments.len() {
+        let (me, lo) = (k + 1, k);
+        let lower = &o2.projections[k - 1];
+        let md = MeshDistance::new(&o2.positions[k - 1], &garments[k - 1].triangles);
+        let mut acc = [0.0f64; 7];
+        let mut n = 0usize;
+        let mut hist = [0usize; 6];
+        let mut gaps: Vec<(f64, f64, f64, f64, f64, f64)> = Vec::new();
+        let mut by_run = [(0usize, 0.0f64, 0.0f64); 5];
+        for (p, d) in contact_vertices(o2, k, &md) {
+            let (q, t) = md.closest_within(p, 0.04).unwrap();
+            let (Some(cu), Some(cl), Some(cq)) = (
+                comp.evaluate(me, p),
+                comp.evaluate(lo, p),
+                comp.evaluate(lo, &q),
+            ) else {
+                continue;
+            };
+            let tri = garments[k - 1].triangles[t];
+            let incontact = tri
+                .iter()
+                .filter(|&&v| lower.run[v as usize] != (lo, lo))
+                .count() as f64
+                / 3.0;
+            let tau: f64 = tri.iter().map(|&v| lower.iso[v as usize]).sum::<f64>() / 3.0;
+            let gap_impl = cl.value / cl.gradient.norm();
+            n += 1;
+            acc[0] += d;
+            acc[1] += gap_impl;
+            acc[2] += cq.value;
+            acc[3] += incontact;
+            acc[4] += cu.value;
+            acc[5] += tau;
+            acc[6] += cl.gradient.norm();
+            let e = ((d - gap_impl) / 0.001).abs().floor() as usize;
+            hist[e.min(5)] += 1;
+            let res: f64 = tri
+                .iter()
+                .map(|&v| lower.residual[v as usize])
+                .fold(0.0, f64::max);
+            let (gl, gu) = (
+                lay[lo].field.field(p).unwrap().1,
+                lay[me].field.field(p).unwrap().1,
+            );
+            let cos = gl.dot(&gu) / (gl.norm() * gu.norm());
+            gaps.push((d, gap_impl, res, cos, incontact, cq.value));
+            let rl = (cu.run.1 - cu.run.0 + 1).min(4);
+            by_run[rl].0 += 1;
+            by_run[rl].1 += gap_impl;
+            by_run[rl].2 += d;
+        }
+        let nn = n.max(1) as f64;
+        eprintln!(
+            "  gap check {} over {}: {n} face-to-face contact vertices; mean mesh gap {:.5}, implicit gap {:.5} (|grad| {:.3}), f̂_lower at closest mesh point {:+.5}, lower vertices in contact {:.2}, lower eps {:+.5}, f̂_upper at p {:+.6}; |mesh-implicit| histogram per mm {:?}",
+            garments[k].name,
+            garments[k - 1].name,
+            acc[0] / nn,
+            acc[1] / nn,
+            acc[6] / nn,
+            acc[2] / nn,
+            acc[3] / nn,
+            acc[5] / nn,
+            acc[4] / nn,
+            hist
+        );
+        let med = |mut x: Vec<f64>| {
+            x.sort_by(f64::total_cmp);
+            x.get(x.len() / 2).copied().unwrap_or(0.0)
+        };
+        let cosm = gaps.iter().map(|g| g.3).sum::<f64>() / nn;
+        eprintln!(
+            "    medians: mesh gap {:.5}, implicit {:.5}; mean cos(grad lower, grad upper) {:.3} (t/cos(θ/2) = {:.5}); outliers (|mesh-implicit| > 3 mm): {}",
+            med(gaps.iter().map(|g| g.0).collect()),
+            med(gaps.iter().map(|g| g.1).collect()),
+            cosm,
+            0.01 / ((1.0 + cosm) / 2.0).sqrt(),
+            gaps.iter().filter(|g| (g.0 - g.1).abs() > 0.003).count()
+        );
+        for g in gaps.iter().filter(|g| (g.0 - g.1).abs() > 0.003).take(8) {
+            eprintln!("      outlier: mesh {:.5} implicit {:.5} lower residual {:.2e} cos {:.3} lower in contact {:.2} f̂_lower(q) {:+.5}", g.0, g.1, g.2, g.3, g.4, g.5);
+        }
+        for (rl, &(n, gi, gm)) in by_run.iter().enumerate().filter(|x| x.1 .0 > 0) {
+            eprintln!("    run of {rl} layers at p: {n} vertices, mean implicit gap {:.5}, mesh gap {:.5}", gi / n as f64, gm / n as f64);
+        }
+        eprintln!(
+            "    lower layer unconverged vertices {}, passes {}",
+            lower.unconverged, lower.iterations
+        );
+    }
+}
+
+/// `LAYERS_BENCH_FIELD_CHECK`: is the gap error in the fields? At the face-to-face contact
+/// vertices of garment k in the projection-only output `o2`, the field of garment k-1: value
+/// (the offset in field units), gradient norm, and the measured mesh distance.
+fn field_check(body: &Mesh, garments: &[Mesh], params: &Params, o2: &Untangled) {
+    use untangle::implicit::field::LayerField;
+    let centre = body_centre(body);
+    for k in 1..garments.len() {
+        let f = build_field(&garments[k - 1], &centre, false, &params.fields).unwrap();
+        let md = MeshDistance::new(&o2.positions[k - 1], &garments[k - 1].triangles);
+        let (mut n, mut sv, mut sg, mut sd) = (0usize, 0.0, 0.0, 0.0);
+        for (p, d) in contact_vertices(o2, k, &md) {
+            let Some((v, g)) = f.field(p) else {
+                continue;
+            };
+            n += 1;
+            sv += v;
+            sg += g.norm();
+            sd += d;
+        }
+        let n = n.max(1) as f64;
+        eprintln!(
+            "  field check {} over {}: face-to-face contact vertices {n}, mean f_below {:.5}, mean |grad f_below| {:.3}, mean distance {:.5}",
+            garments[k].name, garments[k - 1].name, sv / n, sg / n, sd / n
+        );
     }
 }
