@@ -639,6 +639,23 @@ fn arcsim_self_guard_adds_no_self_intersection() {
     );
 }
 
+/// The layers of plane fields `fields` with weights `w` and thicknesses `t`.
+fn plane_layers<'a>(
+    fields: &'a [super::shapes::PlaneField],
+    w: &[f64],
+    t: &[f64],
+) -> Vec<Layer<'a>> {
+    fields
+        .iter()
+        .zip(w.iter().zip(t))
+        .map(|(field, (&weight, &thickness))| Layer {
+            field: field as &dyn LayerField,
+            weight,
+            thickness,
+        })
+        .collect()
+}
+
 /// Where the corrected field of layer `i` crosses zero on the line `s ↦ s·dir`, `s ∈ [-1, 1]`
 /// (scan, then bisection): the position of its corrected surface along `dir`.
 fn root_along(composer: &Composer, i: usize, dir: &Vec3) -> f64 {
@@ -694,13 +711,7 @@ fn plane_gap(
             scale: s[1],
         },
     ];
-    let layers: Vec<Layer> = (0..2)
-        .map(|k| Layer {
-            field: &fields[k] as &dyn LayerField,
-            weight: w[k],
-            thickness: t[k],
-        })
-        .collect();
+    let layers = plane_layers(&fields, &w, &t);
     let composer = Composer::new(&layers).unwrap().with_scaled_offsets(scaled);
     // Contact plane: w_a f̃_a + w_b f̃_b = 0, normal ∝ w_a ∇f_a + w_b ∇f_b.
     let g = na * (w[0] * s[0]) + nb * (w[1] * s[1]);
@@ -778,13 +789,7 @@ fn three_tilted_planes_merged_keep_the_rule_between_neighbours() {
     let g: Vec3 = (0..3).map(|j| normals[j] * (w[j] * fields[j].scale)).sum();
     let n = g.normalize();
     for scaled in [true, false] {
-        let layers: Vec<Layer> = (0..3)
-            .map(|j| Layer {
-                field: &fields[j] as &dyn LayerField,
-                weight: w[j],
-                thickness: t[j],
-            })
-            .collect();
+        let layers = plane_layers(&fields, &w, &t);
         let composer = Composer::new(&layers).unwrap().with_scaled_offsets(scaled);
         let r: Vec<f64> = (0..3).map(|i| root_along(&composer, i, &n)).collect();
         for a in 0..2 {
