@@ -112,8 +112,9 @@ fn main() {
 }
 
 /// `SIM_BENCH_MULTIGRID=1` measures the multigrid CG preconditioner instead of the default.
+/// `UNTANGLE_INTEGRATOR=projective` measures projective dynamics (see `common`).
 fn params() -> SimParams {
-    SimParams {
+    common::integrator_params(SimParams {
         gravity: Vec3::new(0.0, 0.0, -9.81),
         preconditioner: if std::env::var("SIM_BENCH_MULTIGRID").is_ok() {
             untangle::sim::CgPreconditioner::Multigrid
@@ -121,7 +122,7 @@ fn params() -> SimParams {
             untangle::sim::CgPreconditioner::TwoLevel
         },
         ..SimParams::default()
-    }
+    })
 }
 
 fn header(first: &str) {
@@ -172,6 +173,7 @@ fn timed(label: usize, verts: usize, sim: &mut Simulator) {
     let mut cg = 0usize;
     let mut cands = 0usize;
     let mut quits = 0;
+    let (mut pd_it, mut max_stretch, mut energy) = (0usize, 0.0f64, 0.0);
     let cpu0 = cpu_ms();
     for _ in 0..n {
         let r = sim.step(&policy);
@@ -191,6 +193,9 @@ fn timed(label: usize, verts: usize, sim: &mut Simulator) {
             *a += x / n as f64;
         }
         cg += r.cg.iterations;
+        pd_it += r.projective.map_or(0, |p| p.iterations);
+        max_stretch = max_stretch.max(r.max_stretch);
+        energy = r.energy.stretch + r.energy.bend;
         cands += r.collisions.candidates;
         quits += r.administrative_quit() as usize;
     }
@@ -214,6 +219,14 @@ fn timed(label: usize, verts: usize, sim: &mut Simulator) {
         } else {
             String::new()
         }
+    );
+    println!(
+        "        integrator {:?}: {:.1} local/global iterations per step, max stretch {:.4}, \
+         elastic energy at the last step {:.4e} J",
+        sim.params().integrator,
+        pd_it as f64 / n as f64,
+        max_stretch,
+        energy
     );
 }
 
@@ -247,6 +260,7 @@ fn tangled(base: &Mesh, level: usize, patches: usize, steps: usize, arcsim_uv: b
         contacts_within_reach: std::env::var("SIM_BENCH_CLOSE_CONTACTS").is_err(),
         ..SimParams::default()
     };
+    let params = common::integrator_params(params);
     let mut sim = Simulator::new(&g, params).expect("simulator");
     let (am, _) = AnalysisMesh::new(&[(&mesh, ObjectKind::Cloth)]).expect("analysis mesh");
     let verbose = std::env::var("SIM_BENCH_VERBOSE").is_ok();

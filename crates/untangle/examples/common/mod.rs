@@ -33,3 +33,23 @@ pub fn arg(i: usize, default: usize) -> usize {
         .map(|s| s.parse().expect("a number"))
         .unwrap_or(default)
 }
+
+/// The integrator picked by the environment: `UNTANGLE_INTEGRATOR=projective` (or `pd`) selects
+/// projective dynamics, anything else (or unset) Baraff & Witkin; `UNTANGLE_PD_ITERATIONS` sets
+/// the local/global iterations per step (default: the library's).
+pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimParams {
+    use untangle::sim::Integrator;
+    if let Ok(s) = std::env::var("UNTANGLE_INTEGRATOR") {
+        p.integrator = match s.as_str() {
+            "projective" | "pd" => Integrator::Projective,
+            _ => Integrator::BaraffWitkin,
+        };
+    }
+    if let Some(k) = std::env::var("UNTANGLE_PD_ITERATIONS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        p.projective_iterations = k;
+    }
+    p
+}

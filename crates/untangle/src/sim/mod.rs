@@ -19,12 +19,14 @@
 //! Results are bit-identical for any number of threads.
 
 pub mod amg;
+pub mod cholesky;
 pub mod collision;
 pub mod contact;
 pub mod forces;
 pub mod obstacle;
 pub mod pcg;
 pub mod policy;
+pub mod projective;
 pub mod report;
 pub mod rest;
 pub mod sparse;
@@ -34,4 +36,4 @@ pub use collision::impact_zones::ZoneMotion;
 pub use obstacle::Obstacle;
 pub use policy::{Contact, ContactPolicy, RedGreen, UniformThickness};
 pub use report::StepReport;
-pub use step::{CgPreconditioner, SimParams, Simulator};
+pub use step::{CgPreconditioner, Integrator, SimParams, Simulator};

@@ -17,6 +17,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::amg::AmgPreconditioner;
+use super::cholesky::ScalarCholesky;
 use super::sparse::{dot, BsrMatrix, BsrPattern, CHUNK};
 use crate::geom::Vec3;
 
@@ -187,6 +188,9 @@ pub enum Preconditioner<'a> {
     BlockJacobi(Option<&'a CoarseLevel<'a>>),
     /// One smoothed-aggregation multigrid V-cycle ([`crate::sim::amg`]).
     Amg(&'a AmgPreconditioner<'a>),
+    /// A sparse Cholesky factor of a scalar matrix `B`, applied as `S (B^-1 (x) I3) S` (the
+    /// projective-dynamics global matrix, [`crate::sim::cholesky`], [`crate::sim::projective`]).
+    Cholesky(&'a ScalarCholesky),
 }
 
 /// Stopping rule of the solve.
@@ -228,12 +232,18 @@ pub fn solve(
     settings: PcgSettings,
     preconditioner: Preconditioner,
 ) -> PcgResult {
-    let (coarse, amg) = match preconditioner {
-        Preconditioner::BlockJacobi(c) => (c, None),
-        Preconditioner::Amg(m) => (None, Some(m)),
+    let (coarse, amg, chol) = match preconditioner {
+        Preconditioner::BlockJacobi(c) => (c, None, None),
+        Preconditioner::Amg(m) => (None, Some(m), None),
+        Preconditioner::Cholesky(f) => (None, None, Some(f)),
     };
     let n = b.len();
-    let pinv: Vec<Matrix3<f64>> = (0..n)
+    // Block-Jacobi inverses (not needed when another preconditioner replaces it).
+    let pinv: Vec<Matrix3<f64>> = (0..if amg.is_some() || chol.is_some() {
+        0
+    } else {
+        n
+    })
         .into_par_iter()
         .with_min_len(CHUNK)
         .map(|i| {
@@ -251,6 +261,10 @@ pub fn solve(
     let precond = |r: &[Vec3], out: &mut [Vec3]| {
         if let Some(m) = amg {
             m.apply(r, out);
+            return;
+        }
+        if let Some(f) = chol {
+            f.apply(r, filter, out);
             return;
         }
         out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
@@ -308,7 +322,7 @@ pub fn solve(
         }
         let alpha = delta_new / cq;
         // x += alpha c, r -= alpha q, s = filtered block-Jacobi of r, and r . s.
-        let mut rs_dot: f64 = if let Some(m) = amg {
+        let mut rs_dot: f64 = if amg.is_some() || chol.is_some() {
             x.par_chunks_mut(CHUNK)
                 .zip(r.par_chunks_mut(CHUNK))
                 .enumerate()
@@ -319,7 +333,11 @@ pub fn solve(
                         rs[k] -= alpha * q[i];
                     }
                 });
-            m.apply(&r, &mut s)
+            match (amg, chol) {
+                (Some(m), _) => m.apply(&r, &mut s),
+                (None, Some(f)) => f.apply(&r, filter, &mut s),
+                (None, None) => unreachable!("checked above"),
+            }
         } else {
             x.par_chunks_mut(CHUNK)
                 .zip(r.par_chunks_mut(CHUNK))

@@ -3,6 +3,7 @@
 
 use super::collision::CollisionReport;
 use super::pcg::PcgResult;
+use super::projective::ProjectiveResult;
 
 /// Energies of the state at the start of the step (joules).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -37,8 +38,10 @@ pub struct StepReport {
     pub step: u64,
     /// Simulated time at the end of the step (seconds).
     pub time: f64,
-    /// The linear solve.
+    /// The linear solve (for projective dynamics: CG iterations summed over the global steps).
     pub cg: PcgResult,
+    /// The local/global iterations of projective dynamics (`None` with Baraff & Witkin).
+    pub projective: Option<ProjectiveResult>,
     /// Cloth vertices held by an obstacle inside the solve (after releases).
     pub obstacle_contacts: usize,
     /// Cloth-cloth contact springs inside the solve (after releases).

@@ -13,15 +13,18 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::amg::{Amg, AmgSettings};
+use super::cholesky::ScalarCholesky;
 use super::collision::impact_zones::ZoneMotion;
 use super::collision::{self, broad::BroadPhase, CollisionSettings, Scene};
 use super::collision::{Pair, PairKind};
+use super::contact::ObstacleContact;
 use super::contact::{self, ContactFinder};
-use super::forces::stretch::{stretch_terms, StretchTerms, BLOCKS};
+use super::forces::stretch::{stretch_energy, stretch_terms, StretchTerms, BLOCKS};
 use super::obstacle::{Obstacle, Obstacles};
 use super::pcg::{self, Aggregation, CoarseLevel, Filter, PcgResult, PcgSettings};
 use super::policy::Contact;
 use super::policy::ContactPolicy;
+use super::projective::{self, Elastic, Projective, ProjectiveResult, StepProblem};
 use super::report::{Energy, StepReport, StepTiming};
 use super::rest::RestShape;
 use super::sparse::{BsrMatrix, BsrPattern};
@@ -96,6 +99,23 @@ pub struct SimParams {
     pub preconditioner: CgPreconditioner,
     /// How free rigid impact zones move (see [`ZoneMotion`]).
     pub zone_motion: ZoneMotion,
+    /// The time integrator of the cloth dynamics (before collision handling).
+    pub integrator: Integrator,
+    /// Local/global iterations per step of [`Integrator::Projective`].
+    pub projective_iterations: usize,
+}
+
+/// How the implicit step before collision handling is solved.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Integrator {
+    /// One Newton step of implicit Euler with the Baraff & Witkin 1998 forces, solved by
+    /// filtered PCG (the default).
+    #[default]
+    BaraffWitkin,
+    /// Projective dynamics (Bouaziz et al. 2014): implicit Euler as a minimisation by a fixed
+    /// number of local/global iterations with a pre-factored constant matrix
+    /// ([`crate::sim::projective`]).
+    Projective,
 }
 
 /// Which preconditioner CG uses (see [`crate::sim::pcg`] and [`crate::sim::amg`]).
@@ -132,6 +152,8 @@ impl Default for SimParams {
             contacts_within_reach: false,
             preconditioner: CgPreconditioner::TwoLevel,
             zone_motion: ZoneMotion::default(),
+            integrator: Integrator::BaraffWitkin,
+            projective_iterations: 10,
         }
     }
 }
@@ -171,6 +193,11 @@ impl SimParams {
                 "ccd ratio must be in (0, 1], got {}",
                 self.ccd_ratio
             )));
+        }
+        if self.projective_iterations == 0 {
+            return Err(Error::Parameter(
+                "projective iterations must be at least 1".into(),
+            ));
         }
         if !self.gravity.iter().all(|g| g.is_finite()) {
             return Err(Error::Parameter("gravity must be finite".into()));
@@ -219,6 +246,8 @@ pub struct Simulator {
     amg_last: usize,
     /// Velocity change of the previous step: the initial guess of CG.
     dv_prev: Vec<Vec3>,
+    /// Projective-dynamics state (built on the first projective step).
+    pd: Option<PdState>,
     steps: u64,
     time: f64,
 }
@@ -324,6 +353,7 @@ impl Simulator {
             resting: Vec::new(),
             contact_impulse: vec![0.0; n],
             dv_prev: vec![Vec3::zeros(); n],
+            pd: None,
             steps: 0,
             time: 0.0,
         };
@@ -364,6 +394,13 @@ impl Simulator {
         self.uv.copy_from_slice(uv);
         self.rest = rest;
         self.rebuild_bend_base();
+        if let Some(pd) = &mut self.pd {
+            // The factor is kept; the global step solves the new system by CG preconditioned
+            // with it and refactors when that needs many more iterations.
+            pd.system.set_rest(&self.rest);
+            pd.rest_changed = true;
+            pd.factor_exact = false;
+        }
         Ok(())
     }
 
@@ -567,10 +604,8 @@ impl Simulator {
         (f, e_stretch, e_bend)
     }
 
-    /// Advances one step of `params.dt` with the contact `policy` (cloth-cloth pairs; obstacle
-    /// pairs default to the obstacle's thickness).
-    pub fn step(&mut self, policy: &dyn ContactPolicy) -> StepReport {
-        let t0 = Instant::now();
+    /// The implicit solve of Baraff & Witkin (module docs): new velocities.
+    fn solve_baraff_witkin(&mut self, policy: &dyn ContactPolicy, inv_mass: &[f64]) -> Solved {
         let p = self.params.clone();
         let h = p.dt;
         let n = self.x.len();
@@ -619,60 +654,8 @@ impl Simulator {
                 }
             })
             .collect();
-        let inv_mass: Vec<f64> = (0..n)
-            .map(|i| {
-                if self.pinned[i] {
-                    0.0
-                } else {
-                    1.0 / self.mass[i]
-                }
-            })
-            .collect();
-        // Contacts inside the solve (see `contact`): obstacle contacts as constraints, resting
-        // cloth-cloth pairs as implicit one-sided springs.
         let v_pred: Vec<Vec3> = (0..n).map(|i| self.v[i] + self.dv_prev[i]).collect();
-        let (mut contacts, mut springs) = if p.collisions {
-            let free: Vec<bool> = self.pinned.iter().map(|&q| !q).collect();
-            let contacts = self
-                .contacts
-                .find(&self.x, &v_pred, &free, &self.obstacles, h, policy);
-            let pairs: Vec<([u32; 4], bool, f64)> = self
-                .resting
-                .iter()
-                .filter_map(|pr| {
-                    let (nodes, vt, c) = match pr.kind {
-                        PairKind::VertexTriangle => {
-                            let t = self.triangles[pr.b as usize];
-                            (
-                                [pr.a, t[0], t[1], t[2]],
-                                true,
-                                policy.vertex_triangle(pr.a, pr.b),
-                            )
-                        }
-                        PairKind::EdgeEdge => {
-                            let (e, f) = (
-                                self.topology.edges[pr.a as usize],
-                                self.topology.edges[pr.b as usize],
-                            );
-                            (
-                                [e[0], e[1], f[0], f[1]],
-                                false,
-                                policy.edge_edge(pr.a, pr.b),
-                            )
-                        }
-                        _ => return None,
-                    };
-                    match c {
-                        Contact::Thickness(e) if e > 0.0 && e.is_finite() => Some((nodes, vt, e)),
-                        _ => None,
-                    }
-                })
-                .collect();
-            let springs = contact::cloth_contacts(&self.x, &v_pred, &inv_mass, &pairs, h);
-            (contacts, springs)
-        } else {
-            (Vec::new(), Vec::new())
-        };
+        let (mut contacts, mut springs) = self.gather_contacts(policy, &v_pred, inv_mass);
         let t1 = Instant::now();
         let mut dv = self.dv_prev.clone();
         let settings = PcgSettings {
@@ -836,6 +819,364 @@ impl Simulator {
             dv.iter_mut().for_each(|d| *d = Vec3::zeros());
         }
         self.dv_prev = dv;
+        Solved {
+            v,
+            cg,
+            energy,
+            obstacle_contacts,
+            contact_springs,
+            projective: None,
+            assembled: t1,
+        }
+    }
+
+    /// The implicit solve by projective dynamics ([`crate::sim::projective`]): the contacts of
+    /// [`Simulator::gather_contacts`] enter the global system (obstacle contacts as filter
+    /// constraints on the normal position, cloth-cloth springs and friction as quadratic terms);
+    /// new velocities `(x_pd - x_n) / h`.
+    fn solve_projective(&mut self, policy: &dyn ContactPolicy, inv_mass: &[f64]) -> Solved {
+        let p = self.params.clone();
+        let h = p.dt;
+        let n = self.x.len();
+        let elastic = Elastic {
+            stretch: p.stretch_stiffness,
+            shear: p.shear_stiffness,
+            bend: p.bend_stiffness,
+        };
+        let mut pd = self.pd.take().unwrap_or_else(|| PdState {
+            system: Projective::new(n, &self.triangles, &self.rest, elastic),
+            factor: None,
+            key: None,
+            rest_changed: false,
+            factor_exact: false,
+            baseline: None,
+            last: 0,
+        });
+        if pd.system.elastic() != elastic {
+            pd.system.set_elastic(elastic);
+        }
+        let c_m = 1.0 + h * p.damping_mass;
+        let inertia: Vec<f64> = self.mass.iter().map(|m| c_m * m / (h * h)).collect();
+        let damping = p.damping_stiffness / h;
+        let values = pd.system.system_values(&inertia, damping);
+        let key = FactorKey {
+            h,
+            c_m,
+            damping,
+            elastic,
+            pinned: self.pinned.clone(),
+        };
+        let degraded = pd.rest_changed
+            && pd
+                .baseline
+                .is_some_and(|b| pd.last > PD_REFACTOR_FACTOR * b + PD_REFACTOR_SLACK);
+        let mut result = ProjectiveResult::default();
+        if pd.factor.is_none() || pd.key.as_ref() != Some(&key) || degraded {
+            let tf = Instant::now();
+            let pattern = pd.system.pattern();
+            let mut f = match pd.factor.take() {
+                Some(f) => Some(f),
+                None => ScalarCholesky::new(pattern),
+            };
+            if let Some(fac) = &mut f {
+                if !fac.factor(pattern, &values, &self.pinned) {
+                    f = None;
+                }
+            }
+            pd.factor = f;
+            pd.key = Some(key);
+            pd.rest_changed = false;
+            pd.factor_exact = pd.factor.is_some();
+            pd.baseline = None;
+            result.refactored = true;
+            result.factor_ms = tf.elapsed().as_secs_f64() * 1e3;
+        }
+        let energy = Energy {
+            kinetic: (0..n)
+                .map(|i| 0.5 * self.mass[i] * self.v[i].norm_squared())
+                .sum(),
+            stretch: self
+                .triangles
+                .par_iter()
+                .zip(&self.rest.triangles)
+                .with_min_len(256)
+                .map(|(t, r)| {
+                    let x = t.map(|k| &self.x[k as usize]);
+                    stretch_energy(r, x, p.stretch_stiffness, p.shear_stiffness)
+                })
+                .sum(),
+            bend: self
+                .rest
+                .bend
+                .iter()
+                .map(|s| s.energy(&self.x, p.bend_stiffness))
+                .sum(),
+            gravity: -(0..n)
+                .map(|i| self.mass[i] * p.gravity.dot(&self.x[i]))
+                .sum::<f64>(),
+        };
+        let y: Vec<Vec3> = (0..n)
+            .map(|i| self.x[i] + (self.v[i] * h + p.gravity * (h * h)) / c_m)
+            .collect();
+        let v_pred: Vec<Vec3> = (0..n).map(|i| self.v[i] + self.dv_prev[i]).collect();
+        let (mut contacts, mut springs) = self.gather_contacts(policy, &v_pred, inv_mass);
+        let t1 = Instant::now();
+        let settings = PcgSettings {
+            tolerance: p.cg_tolerance,
+            absolute: p.cg_tolerance * p.gravity.norm() * h * self.total_mass.sqrt(),
+            max_iterations: p.cg_max_iterations,
+        };
+        // Start at the predicted positions.
+        let mut x: Vec<Vec3> = (0..n).map(|i| self.x[i] + v_pred[i] * h).collect();
+        let mut cg = PcgResult {
+            converged: true,
+            ..Default::default()
+        };
+        // Constraint forces `A x - rhs` of the last global step that computed them.
+        let mut force = vec![Vec3::zeros(); n];
+        let mut releases = 0;
+        let pattern = pd.system.pattern().clone();
+        let h2 = h * h;
+        'rounds: loop {
+            // The global system of this round: base matrix plus contact springs and friction.
+            let mut a = projective::scalar_blocks(&pattern, &values);
+            let mut extra = vec![Vec3::zeros(); n];
+            for s in &springs {
+                let k = s.stiffness_h2 / h2;
+                a.add_pair(
+                    &pattern,
+                    s.nodes,
+                    s.weights,
+                    s.normal * s.normal.transpose() * k,
+                );
+                let c = s.thickness - s.distance
+                    + s.normal.dot(&(0..4).fold(Vec3::zeros(), |acc, j| {
+                        acc + self.x[s.nodes[j] as usize] * s.weights[j]
+                    }));
+                for j in 0..4 {
+                    extra[s.nodes[j] as usize] += s.normal * (k * c * s.weights[j]);
+                }
+            }
+            a.finish_pairs(&pattern);
+            let mut filter: Vec<Filter> = self
+                .pinned
+                .iter()
+                .map(|&q| if q { Filter::Fixed } else { Filter::Free })
+                .collect();
+            let mut targets: Vec<Vec3> = (0..n)
+                .map(|i| match (self.pinned[i], self.pin_targets[i]) {
+                    (true, Some(t)) => t,
+                    _ => self.x[i],
+                })
+                .collect();
+            for c in &contacts {
+                let i = c.vertex as usize;
+                filter[i] = Filter::Normal(c.normal);
+                targets[i] = self.x[i] + c.normal * (h * c.normal_velocity);
+                // Coulomb friction as tangential damping bounded by the previous step's normal
+                // impulse, as in the Baraff & Witkin solve (there in velocities, here in
+                // positions: the same quadratic divided by h^2).
+                let lam = self.contact_impulse[i];
+                if lam > 0.0 && c.friction > 0.0 {
+                    let rel = v_pred[i] - c.obstacle_velocity;
+                    let vt = rel - c.normal * c.normal.dot(&rel);
+                    let g =
+                        (c.friction * lam / vt.norm().max(1e-9)).min(FRICTION_CAP * self.mass[i]);
+                    let t = (Matrix3::identity() - c.normal * c.normal.transpose()) * (g / h2);
+                    a.values[pattern.diag[i] as usize] += t;
+                    extra[i] += t * (self.x[i] + c.obstacle_velocity * h);
+                }
+            }
+            for i in 0..n {
+                x[i] = match filter[i] {
+                    Filter::Free => x[i],
+                    Filter::Fixed => targets[i],
+                    Filter::Normal(nn) => x[i] + nn * nn.dot(&(targets[i] - x[i])),
+                };
+            }
+            let problem = StepProblem {
+                x0: &self.x,
+                y: &y,
+                inertia: &inertia,
+                damping,
+                matrix: &a,
+                values: &values,
+                exact: pd.factor_exact
+                    && springs.is_empty()
+                    && filter.iter().all(|f| !matches!(f, Filter::Normal(_))),
+                rhs_extra: &extra,
+                filter: &filter,
+                targets: &targets,
+            };
+            let rhs_const = pd.system.constant_rhs(&problem);
+            let Some(factor) = pd.factor.as_ref() else {
+                break 'rounds;
+            };
+            loop {
+                let tl = Instant::now();
+                let local = pd.system.local_step(&x);
+                let tg = Instant::now();
+                let last = result.iterations + 1 >= p.projective_iterations;
+                let check = !last
+                    && releases < MAX_RELEASE_ROUNDS
+                    && (!contacts.is_empty() || !springs.is_empty());
+                let r = pd.system.global_step(
+                    &problem,
+                    &rhs_const,
+                    &local,
+                    factor,
+                    settings,
+                    &mut x,
+                    (check || (last && !contacts.is_empty())).then_some(&mut force),
+                );
+                result.local_ms += (tg - tl).as_secs_f64() * 1e3;
+                result.global_ms += tg.elapsed().as_secs_f64() * 1e3;
+                result.iterations += 1;
+                cg.iterations += r.iterations;
+                cg.relative_residual = r.relative_residual;
+                cg.converged &= r.converged;
+                if result.iterations >= p.projective_iterations {
+                    break 'rounds;
+                }
+                if check {
+                    // Release obstacle contacts that pull and springs that end apart
+                    // (Baraff & Witkin's rule), then continue with the new system.
+                    let keep_c: Vec<ObstacleContact> = contacts
+                        .iter()
+                        .filter(|c| c.normal.dot(&force[c.vertex as usize]) >= 0.0)
+                        .copied()
+                        .collect();
+                    let v_new: Vec<Vec3> = (0..n).map(|i| (x[i] - self.x[i]) / h).collect();
+                    let keep_s: Vec<contact::ClothContact> = springs
+                        .iter()
+                        .filter(|s| s.end_gap(&v_new, h) <= s.thickness)
+                        .copied()
+                        .collect();
+                    let released = keep_c.len() < contacts.len() || keep_s.len() < springs.len();
+                    contacts = keep_c;
+                    springs = keep_s;
+                    if released {
+                        releases += 1;
+                        continue 'rounds;
+                    }
+                }
+            }
+        }
+        result.cg_iterations = cg.iterations;
+        result.relative_residual = cg.relative_residual;
+        if pd.baseline.is_none() {
+            pd.baseline = Some(cg.iterations);
+        }
+        pd.last = cg.iterations;
+        // Normal impulses of the kept contacts (friction bound of the next step): the
+        // constraint force of the last global step times h.
+        self.contact_impulse.iter_mut().for_each(|l| *l = 0.0);
+        for c in &contacts {
+            let i = c.vertex as usize;
+            self.contact_impulse[i] = (h * c.normal.dot(&force[i])).max(0.0);
+        }
+        let (obstacle_contacts, contact_springs) = (contacts.len(), springs.len());
+        let mut v: Vec<Vec3> = (0..n).map(|i| (x[i] - self.x[i]) / h).collect();
+        if pd.factor.is_none() || v.iter().any(|x| !x.iter().all(|c| c.is_finite())) {
+            // A failed factorisation or solve must not poison the state: keep the velocities.
+            v.copy_from_slice(&self.v);
+        }
+        self.dv_prev = (0..n).map(|i| v[i] - self.v[i]).collect();
+        self.pd = Some(pd);
+        Solved {
+            v,
+            cg,
+            energy,
+            obstacle_contacts,
+            contact_springs,
+            projective: Some(result),
+            assembled: t1,
+        }
+    }
+
+    /// The contacts of the implicit solve (see `contact`): obstacle contacts as constraints,
+    /// resting cloth-cloth pairs as implicit one-sided springs; predicted velocities `v_pred`.
+    fn gather_contacts(
+        &mut self,
+        policy: &dyn ContactPolicy,
+        v_pred: &[Vec3],
+        inv_mass: &[f64],
+    ) -> (Vec<ObstacleContact>, Vec<contact::ClothContact>) {
+        let p = &self.params;
+        let h = p.dt;
+        if p.collisions {
+            let free: Vec<bool> = self.pinned.iter().map(|&q| !q).collect();
+            let contacts = self
+                .contacts
+                .find(&self.x, v_pred, &free, &self.obstacles, h, policy);
+            let pairs: Vec<([u32; 4], bool, f64)> = self
+                .resting
+                .iter()
+                .filter_map(|pr| {
+                    let (nodes, vt, c) = match pr.kind {
+                        PairKind::VertexTriangle => {
+                            let t = self.triangles[pr.b as usize];
+                            (
+                                [pr.a, t[0], t[1], t[2]],
+                                true,
+                                policy.vertex_triangle(pr.a, pr.b),
+                            )
+                        }
+                        PairKind::EdgeEdge => {
+                            let (e, f) = (
+                                self.topology.edges[pr.a as usize],
+                                self.topology.edges[pr.b as usize],
+                            );
+                            (
+                                [e[0], e[1], f[0], f[1]],
+                                false,
+                                policy.edge_edge(pr.a, pr.b),
+                            )
+                        }
+                        _ => return None,
+                    };
+                    match c {
+                        Contact::Thickness(e) if e > 0.0 && e.is_finite() => Some((nodes, vt, e)),
+                        _ => None,
+                    }
+                })
+                .collect();
+            let springs = contact::cloth_contacts(&self.x, v_pred, inv_mass, &pairs, h);
+            (contacts, springs)
+        } else {
+            (Vec::new(), Vec::new())
+        }
+    }
+
+    /// Advances one step of `params.dt` with the contact `policy` (cloth-cloth pairs; obstacle
+    /// pairs default to the obstacle's thickness).
+    pub fn step(&mut self, policy: &dyn ContactPolicy) -> StepReport {
+        let t0 = Instant::now();
+        let p = self.params.clone();
+        let h = p.dt;
+        let n = self.x.len();
+        let inv_mass: Vec<f64> = (0..n)
+            .map(|i| {
+                if self.pinned[i] {
+                    0.0
+                } else {
+                    1.0 / self.mass[i]
+                }
+            })
+            .collect();
+        let solved = match p.integrator {
+            Integrator::BaraffWitkin => self.solve_baraff_witkin(policy, &inv_mass),
+            Integrator::Projective => self.solve_projective(policy, &inv_mass),
+        };
+        let Solved {
+            mut v,
+            cg,
+            energy,
+            obstacle_contacts,
+            contact_springs,
+            projective,
+            assembled: t1,
+        } = solved;
         let t2 = Instant::now();
         let mut collisions = if p.collisions {
             let scene = Scene {
@@ -883,6 +1224,7 @@ impl Simulator {
             step: self.steps,
             time: self.time + h,
             cg,
+            projective,
             collisions,
             energy,
             max_stretch: self.max_stretch(),
@@ -899,6 +1241,49 @@ impl Simulator {
         self.time += h;
         report
     }
+}
+
+/// What the implicit solve of a step hands to the collision handling and the report.
+struct Solved {
+    v: Vec<Vec3>,
+    cg: PcgResult,
+    energy: Energy,
+    obstacle_contacts: usize,
+    contact_springs: usize,
+    projective: Option<ProjectiveResult>,
+    /// When the system was assembled (end of the "assemble" phase).
+    assembled: Instant,
+}
+
+/// Iterations of a projective step above which, once the rest shape changed, the factor is
+/// recomputed: this many times the iterations of the first step after the last factorisation
+/// plus [`PD_REFACTOR_SLACK`].
+const PD_REFACTOR_FACTOR: usize = 2;
+/// Iterations added to the refactor threshold.
+const PD_REFACTOR_SLACK: usize = 8;
+
+/// What the factor of the projective global matrix was computed for.
+#[derive(Clone, Debug, PartialEq)]
+struct FactorKey {
+    h: f64,
+    c_m: f64,
+    damping: f64,
+    elastic: Elastic,
+    pinned: Vec<bool>,
+}
+
+/// Projective-dynamics state kept across steps.
+struct PdState {
+    system: Projective,
+    factor: Option<ScalarCholesky>,
+    key: Option<FactorKey>,
+    /// Whether the rest shape changed since the factorisation.
+    rest_changed: bool,
+    /// Whether the factor is of the current base matrix (no rest change since).
+    factor_exact: bool,
+    /// CG iterations of the first step after the factorisation, and of the last step.
+    baseline: Option<usize>,
+    last: usize,
 }
 
 fn check_vectors(what: &str, x: &[Vec3], n: usize) -> Result<()> {

@@ -99,6 +99,16 @@ pub fn stretch_terms(
     }
 }
 
+/// The energy of [`stretch_terms`] alone (no derivatives), for reports.
+pub fn stretch_energy(rest: &TriangleRest, x: [&Vec3; 3], k_stretch: f64, k_shear: f64) -> f64 {
+    let (a, b) = (&rest.a, &rest.b);
+    let wu = x[0] * a[0] + x[1] * a[1] + x[2] * a[2];
+    let wv = x[0] * b[0] + x[1] * b[1] + x[2] * b[2];
+    let (cu, cv) = (wu.norm() - 1.0, wv.norm() - 1.0);
+    let s = wu.dot(&wv);
+    rest.area * (0.5 * k_stretch * (cu * cu + cv * cv) + 0.5 * k_shear * s * s)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -121,6 +131,8 @@ mod tests {
             let rest = TriangleRest::new(&uv[0], &uv[1], &uv[2]).unwrap();
             let xs = [Vec3::new(x[0], x[1], x[2]), Vec3::new(x[3], x[4], x[5]), Vec3::new(x[6], x[7], x[8])];
             let t = stretch_terms(&rest, [&xs[0], &xs[1], &xs[2]], 700.0, 90.0);
+            let e = stretch_energy(&rest, [&xs[0], &xs[1], &xs[2]], 700.0, 90.0);
+            prop_assert!((e - t.energy).abs() <= 1e-12 * (1.0 + e.abs()));
             let h = 1e-6;
             for i in 0..3 {
                 for d in 0..3 {

@@ -1,0 +1,627 @@
+//! Projective dynamics (Bouaziz et al. 2014, "Projective Dynamics: Fusing Constraint
+//! Projections for Fast Simulation"; Liu et al. 2013 for the mass-spring special case): implicit
+//! Euler as the minimisation of
+//!
+//! `E(x) = 1/(2 h^2) |M'^1/2 (x - y)|^2 + sum_i w_i/2 |A_i S_i x - p_i|^2 + kb/2 x^T B x
+//!        + beta/(2h) (x - x_n)^T L (x - x_n)`
+//!
+//! over the end-of-step positions `x` (Bouaziz et al. Eq. 6/10), alternating a *local* step
+//! (per-element projections `p_i`, in parallel, Sec. 4) and a *global* step, a linear solve with
+//! the constant matrix `M'/h^2 + sum_i w_i S_i^T A_i^T A_i S_i` (Eq. 12) — the same scalar matrix
+//! for `x`, `y` and `z`, factored once ([`super::cholesky`]).
+//!
+//! Terms (see `docs/projective.md` for the reasoning):
+//! - Membrane, per triangle against its uv rest shape (`F = [w_u w_v] = Ds Dm^-1`, a 3x2
+//!   deformation gradient, so `A_i S_i x = F` is linear in the corners with the coefficients of
+//!   [`TriangleRest`]): an as-rigid-as-possible constraint (`p` = the closest 3x2 matrix with
+//!   orthonormal columns, [`project_orthonormal`]) of weight `2 k_shear` per rest area, plus a
+//!   per-column unit-length constraint (`p` = the columns normalised, [`project_unit_columns`]) of
+//!   weight `k_stretch - 2 k_shear`. To second order in the strain this is exactly Baraff &
+//!   Witkin's stretch (`k_stretch/2 (|w| - 1)^2` per column) and shear (`k_shear/2 (w_u.w_v)^2`)
+//!   energy ([`super::forces::stretch`]), so both integrators share one set of parameters.
+//! - Bending: the quadratic isometric bending of Bergou et al. 2006 ([`super::forces::bend`]);
+//!   the rest shape is the flat uv panel, so the energy is quadratic with a constant matrix
+//!   that goes straight into the factor (no projection).
+//! - Inertia and mass damping: implicit Euler with damping force `-alpha M v` is the
+//!   minimisation with `M' = (1 + h alpha) M` and `y = x_n + (h v_n + h^2 g) / (1 + h alpha)`.
+//! - Stiffness damping: Rayleigh `beta K` with `K` replaced by the constant elastic matrix `L`
+//!   (the exact Hessian at rest), the quadratic term above; it scales the elastic part of the
+//!   global matrix by `1 + beta/h`.
+//! - Contacts (the simulator's obstacle constraints, cloth-cloth springs and friction) enter the
+//!   global system only; they change every step, so the global step solves the *current* system
+//!   by conjugate gradients preconditioned with the factor of the base matrix
+//!   ([`super::pcg::Preconditioner::Cholesky`]), warm-started at the current iterate.
+//!
+//! Every local/global iteration never increases `E` (the local step minimises over `p` exactly,
+//! the global step is CG on a convex quadratic started at the current iterate), which the tests
+//! check.
+
+use nalgebra::Matrix3x2;
+use rayon::prelude::*;
+
+use super::cholesky::ScalarCholesky;
+use super::forces::stretch::TriangleRest;
+use super::pcg::{self, Filter, PcgResult, PcgSettings};
+use super::rest::RestShape;
+use super::sparse::{BsrMatrix, BsrPattern, CHUNK};
+use crate::geom::Vec3;
+
+/// Per unit rest area, the weights `(arap, columns)` of the two membrane constraints that match
+/// Baraff & Witkin's stretch stiffness `k_stretch` and shear stiffness `k_shear` to second order
+/// (module docs). When `k_stretch < 2 k_shear` the column weight is 0 and the stretch stiffness
+/// is `2 k_shear` (stiffer than asked).
+pub fn membrane_weights(k_stretch: f64, k_shear: f64) -> (f64, f64) {
+    let arap = 2.0 * k_shear;
+    (arap, (k_stretch - arap).max(0.0))
+}
+
+/// The closest 3x2 matrix with orthonormal columns to `f` in the Frobenius norm, `U V^T` of the
+/// thin SVD `f = U S V^T` (the "rotation" of a triangle's deformation gradient, Bouaziz et al.
+/// 2014, Sec. 5.1 "strain"). In closed form `f (f^T f)^-1/2`; for a degenerate `f` (rank < 2)
+/// any completion of the dominant direction is a closest point and a deterministic one is
+/// returned. In 3D a 2D reflection is a rotation, so there is no inversion case.
+pub fn project_orthonormal(f: &Matrix3x2<f64>) -> Matrix3x2<f64> {
+    let c = f.transpose() * f;
+    let (p, q, r) = (c[(0, 0)], c[(0, 1)], c[(1, 1)]);
+    let tr = p + r;
+    let det = p * r - q * q;
+    if tr > 0.0 && det > 1e-12 * tr * tr {
+        // sqrt(C) = (C + sqrt(det) I) / sqrt(tr + 2 sqrt(det)) for a 2x2 SPD C.
+        let sd = det.sqrt();
+        let s = 1.0 / (tr + 2.0 * sd).sqrt();
+        let (a, b, d) = ((p + sd) * s, q * s, (r + sd) * s);
+        let inv = 1.0 / (a * d - b * b);
+        let (ia, ib, id) = (d * inv, -b * inv, a * inv);
+        let u = f.column(0) * ia + f.column(1) * ib;
+        let v = f.column(0) * ib + f.column(1) * id;
+        return Matrix3x2::from_columns(&[u, v]);
+    }
+    // Rank <= 1: keep the longer column's direction, complete with the other column's part
+    // orthogonal to it (or any orthogonal direction).
+    let (cu, cv) = (f.column(0).into_owned(), f.column(1).into_owned());
+    let swap = cv.norm_squared() > cu.norm_squared();
+    let (d, o) = if swap { (cv, cu) } else { (cu, cv) };
+    let e1 = if d.norm() > 0.0 {
+        d.normalize()
+    } else {
+        Vec3::x()
+    };
+    let mut e2 = o - e1 * e1.dot(&o);
+    if e2.norm() <= 1e-9 * (1.0 + o.norm()) {
+        let axis = if e1.x.abs() < 0.9 {
+            Vec3::x()
+        } else {
+            Vec3::y()
+        };
+        e2 = axis - e1 * e1.dot(&axis);
+    }
+    let e2 = e2.normalize();
+    if swap {
+        Matrix3x2::from_columns(&[e2, e1])
+    } else {
+        Matrix3x2::from_columns(&[e1, e2])
+    }
+}
+
+/// The closest 3x2 matrix with unit columns: each column normalised (a zero column becomes the
+/// corresponding column of `fallback`). Distance squared `(|w_u| - 1)^2 + (|w_v| - 1)^2`, Baraff &
+/// Witkin's stretch condition.
+pub fn project_unit_columns(f: &Matrix3x2<f64>, fallback: &Matrix3x2<f64>) -> Matrix3x2<f64> {
+    let col = |k: usize| {
+        let c = f.column(k);
+        let l = c.norm();
+        if l > 0.0 {
+            c / l
+        } else {
+            fallback.column(k).into_owned()
+        }
+    };
+    Matrix3x2::from_columns(&[col(0), col(1)])
+}
+
+/// Elastic parameters of the projective system.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Elastic {
+    /// Stretch stiffness (N/m).
+    pub stretch: f64,
+    /// Shear stiffness (N/m).
+    pub shear: f64,
+    /// Bending stiffness (N m).
+    pub bend: f64,
+}
+
+/// The elastic part of the projective-dynamics system of one mesh: element data, the constant
+/// elastic matrix `L` (scalar per node pair) and the local step.
+#[derive(Clone, Debug)]
+pub struct Projective {
+    n: usize,
+    triangles: Vec<[u32; 3]>,
+    rest: Vec<TriangleRest>,
+    pattern: BsrPattern,
+    /// Per vertex: `(triangle, corner)` incidences (CSR), for the parallel gather.
+    inc_offsets: Vec<u32>,
+    inc: Vec<(u32, u8)>,
+    /// Constant elastic matrix `L` per pattern slot (membrane + bending).
+    stiff: Vec<f64>,
+    elastic: Elastic,
+    /// Per unit area `(arap, columns)` weights.
+    weights: (f64, f64),
+    bend: Vec<super::forces::bend::BendStencil>,
+}
+
+impl Projective {
+    /// The system of `n` vertices, `triangles` with their rest shape.
+    pub fn new(n: usize, triangles: &[[u32; 3]], rest: &RestShape, elastic: Elastic) -> Projective {
+        let mut pairs = Vec::new();
+        for t in triangles {
+            pairs.extend([(t[0], t[1]), (t[1], t[2]), (t[0], t[2])]);
+        }
+        for s in &rest.bend {
+            let w = s.vertices;
+            for i in 0..4 {
+                for j in i + 1..4 {
+                    pairs.push((w[i], w[j]));
+                }
+            }
+        }
+        let pattern = BsrPattern::from_pairs(n, pairs);
+        let mut count = vec![0u32; n + 1];
+        for t in triangles {
+            for &v in t {
+                count[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            count[i + 1] += count[i];
+        }
+        let mut fill = count.clone();
+        let mut inc = vec![(0u32, 0u8); count[n] as usize];
+        for (ti, t) in triangles.iter().enumerate() {
+            for (k, &v) in t.iter().enumerate() {
+                inc[fill[v as usize] as usize] = (ti as u32, k as u8);
+                fill[v as usize] += 1;
+            }
+        }
+        let mut p = Projective {
+            n,
+            triangles: triangles.to_vec(),
+            rest: rest.triangles.clone(),
+            pattern,
+            inc_offsets: count,
+            inc,
+            stiff: Vec::new(),
+            elastic,
+            weights: membrane_weights(elastic.stretch, elastic.shear),
+            bend: rest.bend.clone(),
+        };
+        p.rebuild_stiffness();
+        p
+    }
+
+    /// Replaces the rest shape (same mesh) and rebuilds `L` (O(triangles + edges)).
+    pub fn set_rest(&mut self, rest: &RestShape) {
+        self.rest.clone_from(&rest.triangles);
+        self.bend.clone_from(&rest.bend);
+        self.rebuild_stiffness();
+    }
+
+    /// Changes the elastic parameters and rebuilds `L`.
+    pub fn set_elastic(&mut self, elastic: Elastic) {
+        self.elastic = elastic;
+        self.weights = membrane_weights(elastic.stretch, elastic.shear);
+        self.rebuild_stiffness();
+    }
+
+    /// The elastic parameters.
+    pub fn elastic(&self) -> Elastic {
+        self.elastic
+    }
+
+    fn rebuild_stiffness(&mut self) {
+        let mut stiff = vec![0.0; self.pattern.nnz()];
+        let w = self.weights.0 + self.weights.1;
+        for (t, r) in self.triangles.iter().zip(&self.rest) {
+            for i in 0..3 {
+                for j in 0..3 {
+                    let slot = self.pattern.slot(t[i], t[j]).expect("triangle pair");
+                    stiff[slot] += w * r.area * (r.a[i] * r.a[j] + r.b[i] * r.b[j]);
+                }
+            }
+        }
+        let kb = self.elastic.bend;
+        for s in &self.bend {
+            for i in 0..4 {
+                for j in 0..4 {
+                    let slot = self
+                        .pattern
+                        .slot(s.vertices[i], s.vertices[j])
+                        .expect("bending pair");
+                    stiff[slot] += kb * s.weights[i] * s.weights[j];
+                }
+            }
+        }
+        self.stiff = stiff;
+    }
+
+    /// The block pattern of the system (node pairs sharing a triangle or a bending stencil).
+    pub fn pattern(&self) -> &BsrPattern {
+        &self.pattern
+    }
+
+    /// The constant elastic matrix `L` (one scalar per pattern slot).
+    pub fn stiffness(&self) -> &[f64] {
+        &self.stiff
+    }
+
+    /// Number of vertices.
+    pub fn vertices(&self) -> usize {
+        self.n
+    }
+
+    /// The global matrix `diag(inertia) + (1 + damping) L` per pattern slot (`inertia[i]` =
+    /// `(1 + h alpha) m_i / h^2`, `damping` = `beta / h`).
+    pub fn system_values(&self, inertia: &[f64], damping: f64) -> Vec<f64> {
+        let mut v: Vec<f64> = self.stiff.iter().map(|s| s * (1.0 + damping)).collect();
+        for (i, m) in inertia.iter().enumerate() {
+            v[self.pattern.diag[i] as usize] += m;
+        }
+        v
+    }
+
+    /// `y = L x` (the scalar matrix applied to each coordinate).
+    pub fn mul_stiffness(&self, x: &[Vec3], y: &mut [Vec3]) {
+        let p = &self.pattern;
+        y.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
+            for (k, yi) in ys.iter_mut().enumerate() {
+                let i = c * CHUNK + k;
+                let mut acc = Vec3::zeros();
+                for s in p.offsets[i] as usize..p.offsets[i + 1] as usize {
+                    acc += x[p.cols[s] as usize] * self.stiff[s];
+                }
+                *yi = acc;
+            }
+        });
+    }
+
+    fn gradient(&self, t: usize, x: &[Vec3]) -> Matrix3x2<f64> {
+        let (tri, r) = (&self.triangles[t], &self.rest[t]);
+        let mut wu = Vec3::zeros();
+        let mut wv = Vec3::zeros();
+        for k in 0..3 {
+            let p = x[tri[k] as usize];
+            wu += p * r.a[k];
+            wv += p * r.b[k];
+        }
+        Matrix3x2::from_columns(&[wu, wv])
+    }
+
+    /// The local step: the projections of every triangle at `x`, returned as the global step's
+    /// right-hand side `sum_i w_i S_i^T A_i^T p_i` per vertex (Bouaziz et al. Eq. 12). Parallel
+    /// over triangles, gathered per vertex in a fixed order (deterministic).
+    pub fn local_step(&self, x: &[Vec3]) -> Vec<Vec3> {
+        let (wa, wc) = self.weights;
+        let targets: Vec<Matrix3x2<f64>> = (0..self.triangles.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|t| {
+                let f = self.gradient(t, x);
+                let r = project_orthonormal(&f);
+                let area = self.rest[t].area;
+                let mut p = r * (wa * area);
+                if wc > 0.0 {
+                    p += project_unit_columns(&f, &r) * (wc * area);
+                }
+                p
+            })
+            .collect();
+        let mut out = vec![Vec3::zeros(); self.n];
+        out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, os)| {
+            for (k, o) in os.iter_mut().enumerate() {
+                let i = c * CHUNK + k;
+                let mut acc = Vec3::zeros();
+                for &(t, corner) in
+                    &self.inc[self.inc_offsets[i] as usize..self.inc_offsets[i + 1] as usize]
+                {
+                    let (t, corner) = (t as usize, corner as usize);
+                    let r = &self.rest[t];
+                    let p = &targets[t];
+                    acc += p.column(0) * r.a[corner] + p.column(1) * r.b[corner];
+                }
+                *o = acc;
+            }
+        });
+        out
+    }
+
+    /// The elastic energy at `x`: membrane (distance of every triangle's gradient to the two
+    /// constraint sets, computed from its singular values) plus bending.
+    pub fn elastic_energy(&self, x: &[Vec3]) -> f64 {
+        let (wa, wc) = self.weights;
+        let membrane: f64 = (0..self.triangles.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|t| {
+                let f = self.gradient(t, x);
+                let c = f.transpose() * f;
+                let sv = nalgebra::SymmetricEigen::new(c).eigenvalues;
+                let arap: f64 = sv.iter().map(|&l| (l.max(0.0).sqrt() - 1.0).powi(2)).sum();
+                let cols = (f.column(0).norm() - 1.0).powi(2) + (f.column(1).norm() - 1.0).powi(2);
+                0.5 * self.rest[t].area * (wa * arap + wc * cols)
+            })
+            .collect::<Vec<f64>>()
+            .iter()
+            .sum();
+        let kb = self.elastic.bend;
+        let bend: f64 = self.bend.iter().map(|s| s.energy(x, kb)).sum();
+        membrane + bend
+    }
+}
+
+/// One implicit step's problem for [`solve`]: inertia, damping, constraints and the extra
+/// (contact) terms of the global system.
+pub struct StepProblem<'a> {
+    /// Start-of-step positions `x_n`.
+    pub x0: &'a [Vec3],
+    /// Inertial target `y`.
+    pub y: &'a [Vec3],
+    /// `(1 + h alpha) m_i / h^2` per vertex.
+    pub inertia: &'a [f64],
+    /// `beta / h` (stiffness damping on the elastic matrix).
+    pub damping: f64,
+    /// The global matrix: `values` as identity blocks, plus contact blocks.
+    pub matrix: &'a BsrMatrix,
+    /// The scalar part of the global matrix ([`Projective::system_values`]).
+    pub values: &'a [f64],
+    /// Whether `matrix` is exactly `values` (no contact blocks) and the factor is of `values`
+    /// with the fixed nodes of `filter` eliminated and no other constraint: then the global
+    /// step is one direct solve.
+    pub exact: bool,
+    /// Constant right-hand-side terms (contacts, friction) added to inertia and damping.
+    pub rhs_extra: &'a [Vec3],
+    /// Constrained directions of each vertex.
+    pub filter: &'a [Filter],
+    /// Prescribed positions in the constrained directions.
+    pub targets: &'a [Vec3],
+}
+
+/// What [`solve`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct ProjectiveResult {
+    /// Local/global iterations run.
+    pub iterations: usize,
+    /// Conjugate-gradient iterations summed over the global steps.
+    pub cg_iterations: usize,
+    /// Relative residual of the last global step.
+    pub relative_residual: f64,
+    /// Whether the factor was recomputed in this step.
+    pub refactored: bool,
+    /// Milliseconds spent in the local steps.
+    pub local_ms: f64,
+    /// Milliseconds spent in the global steps.
+    pub global_ms: f64,
+    /// Milliseconds spent factoring.
+    pub factor_ms: f64,
+}
+
+impl Projective {
+    /// The constant right-hand side `M' y / h^2 + (beta/h) L x_n + extra`.
+    pub fn constant_rhs(&self, problem: &StepProblem) -> Vec<Vec3> {
+        let mut lx = vec![Vec3::zeros(); self.n];
+        self.mul_stiffness(problem.x0, &mut lx);
+        (0..self.n)
+            .map(|i| {
+                problem.y[i] * problem.inertia[i] + lx[i] * problem.damping + problem.rhs_extra[i]
+            })
+            .collect()
+    }
+
+    /// One local/global iteration from `x` (constrained directions already at their targets):
+    /// [`Projective::local_step`], then [`Projective::global_step`].
+    pub fn iterate(
+        &self,
+        problem: &StepProblem,
+        rhs_const: &[Vec3],
+        factor: &ScalarCholesky,
+        settings: PcgSettings,
+        x: &mut [Vec3],
+    ) -> PcgResult {
+        let local = self.local_step(x);
+        self.global_step(problem, rhs_const, &local, factor, settings, x, None)
+    }
+
+    /// The global step: CG on `A x = rhs_const + local` for the increment from the current
+    /// iterate (warm start), preconditioned with `factor`. With `force`, also the residual
+    /// force `A x - rhs` at the new iterate (the constraint forces at constrained vertices).
+    #[allow(clippy::too_many_arguments)]
+    pub fn global_step(
+        &self,
+        problem: &StepProblem,
+        rhs_const: &[Vec3],
+        local: &[Vec3],
+        factor: &ScalarCholesky,
+        settings: PcgSettings,
+        x: &mut [Vec3],
+        force: Option<&mut Vec<Vec3>>,
+    ) -> PcgResult {
+        let n = self.n;
+        if problem.exact && force.is_none() {
+            // Direct solve of the eliminated system: fixed rows `d x = d target`, free rows
+            // `B_ff x_f = rhs_f - B_fc target_c`.
+            let p = &self.pattern;
+            let mut rhs: Vec<Vec3> = (0..n).map(|i| rhs_const[i] + local[i]).collect();
+            for (j, f) in problem.filter.iter().enumerate() {
+                if *f == Filter::Fixed {
+                    let t = problem.targets[j];
+                    for s in p.offsets[j] as usize..p.offsets[j + 1] as usize {
+                        let i = p.cols[s] as usize;
+                        if i != j && problem.filter[i] != Filter::Fixed {
+                            rhs[i] -= t * problem.values[s];
+                        }
+                    }
+                    rhs[j] = t * problem.values[p.diag[j] as usize];
+                }
+            }
+            factor.solve3(&mut rhs);
+            for i in 0..n {
+                x[i] = if problem.filter[i] == Filter::Fixed {
+                    problem.targets[i]
+                } else {
+                    rhs[i]
+                };
+            }
+            return PcgResult {
+                iterations: 1,
+                relative_residual: 0.0,
+                converged: true,
+            };
+        }
+        let mut ax = vec![Vec3::zeros(); n];
+        problem.matrix.mul(&self.pattern, x, &mut ax);
+        let b: Vec<Vec3> = (0..n).map(|i| rhs_const[i] + local[i] - ax[i]).collect();
+        let z: Vec<Vec3> = (0..n).map(|i| problem.targets[i] - x[i]).collect();
+        let mut dx = vec![Vec3::zeros(); n];
+        let r = pcg::solve(
+            &self.pattern,
+            problem.matrix,
+            &b,
+            problem.filter,
+            &z,
+            &mut dx,
+            settings,
+            pcg::Preconditioner::Cholesky(factor),
+        );
+        for i in 0..n {
+            x[i] += dx[i];
+        }
+        if let Some(f) = force {
+            problem.matrix.mul(&self.pattern, &dx, &mut ax);
+            f.resize(n, Vec3::zeros());
+            for i in 0..n {
+                f[i] = ax[i] - b[i];
+            }
+        }
+        r
+    }
+
+    /// The variational energy `E(x)` of the step (module docs) without contact terms.
+    pub fn step_energy(&self, problem: &StepProblem, x: &[Vec3]) -> f64 {
+        let inertial: f64 = (0..self.n)
+            .map(|i| 0.5 * problem.inertia[i] * (x[i] - problem.y[i]).norm_squared())
+            .sum();
+        let d: Vec<Vec3> = (0..self.n).map(|i| x[i] - problem.x0[i]).collect();
+        let mut ld = vec![Vec3::zeros(); self.n];
+        self.mul_stiffness(&d, &mut ld);
+        let damping = 0.5 * problem.damping * crate::sim::sparse::dot(&d, &ld);
+        inertial + self.elastic_energy(x) + damping
+    }
+}
+
+/// The matrix `values` (one scalar per slot) as identity blocks.
+pub fn scalar_blocks(pattern: &BsrPattern, values: &[f64]) -> BsrMatrix {
+    let mut m = BsrMatrix::zeros(pattern);
+    for (b, &v) in m.values.iter_mut().zip(values) {
+        *b = nalgebra::Matrix3::identity() * v;
+    }
+    m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn mat(m: &[f64; 6]) -> Matrix3x2<f64> {
+        Matrix3x2::new(m[0], m[1], m[2], m[3], m[4], m[5])
+    }
+
+    proptest! {
+        /// The projection equals `U V^T` of nalgebra's SVD, has orthonormal columns, is
+        /// idempotent, and no sampled orthonormal 3x2 matrix is closer.
+        #[test]
+        fn orthonormal_projection_matches_svd(m in prop::array::uniform6(-2.0f64..2.0),
+                                              angles in prop::collection::vec(-3.2f64..3.2, 60)) {
+            let f = mat(&m);
+            let svd = f.svd(true, true);
+            prop_assume!(svd.singular_values[1] > 1e-3 * svd.singular_values[0].max(1e-9));
+            let r = project_orthonormal(&f);
+            let want = svd.u.unwrap() * svd.v_t.unwrap();
+            prop_assert!((r - want).norm() < 1e-8, "{} vs {}", r, want);
+            let rtr = r.transpose() * r;
+            prop_assert!((rtr - nalgebra::Matrix2::identity()).norm() < 1e-10);
+            prop_assert!((project_orthonormal(&r) - r).norm() < 1e-12);
+            let best = (f - r).norm_squared();
+            for a in angles.chunks(3) {
+                let rot = nalgebra::Rotation3::from_euler_angles(a[0], a[1], a[2]);
+                let q = rot.matrix().fixed_view::<3, 2>(0, 0).into_owned();
+                prop_assert!((f - q).norm_squared() >= best - 1e-12);
+            }
+        }
+
+        /// Degenerate gradients (rank 0 or 1) still give orthonormal columns at the closest
+        /// distance `sum (sigma_i - 1)^2`.
+        #[test]
+        fn degenerate_projection_is_orthonormal(m in prop::array::uniform3(-2.0f64..2.0), s in -1.0f64..1.0, zero in any::<bool>()) {
+            let c = Vec3::new(m[0], m[1], m[2]);
+            let f = if zero { Matrix3x2::zeros() } else { Matrix3x2::from_columns(&[c, c * s]) };
+            let r = project_orthonormal(&f);
+            prop_assert!((r.transpose() * r - nalgebra::Matrix2::identity()).norm() < 1e-10);
+            let sv = f.svd(false, false).singular_values;
+            let dist: f64 = sv.iter().map(|x| (x - 1.0).powi(2)).sum();
+            prop_assert!(((f - r).norm_squared() - dist).abs() < 1e-9);
+        }
+
+        /// Unit-column projection: idempotent, unit columns, and the closest such matrix
+        /// (distance `sum (|c| - 1)^2`).
+        #[test]
+        fn unit_column_projection(m in prop::array::uniform6(-2.0f64..2.0)) {
+            let f = mat(&m);
+            let r = project_orthonormal(&f);
+            let p = project_unit_columns(&f, &r);
+            prop_assert!((p.column(0).norm() - 1.0).abs() < 1e-12);
+            prop_assert!((p.column(1).norm() - 1.0).abs() < 1e-12);
+            prop_assert!((project_unit_columns(&p, &r) - p).norm() < 1e-12);
+            let d = (f.column(0).norm() - 1.0).powi(2) + (f.column(1).norm() - 1.0).powi(2);
+            prop_assert!(((f - p).norm_squared() - d).abs() < 1e-9);
+        }
+    }
+
+    /// The membrane weights reproduce Baraff & Witkin's stretch/shear energy to second order:
+    /// for a small strain, the two energies agree up to O(strain^3).
+    #[test]
+    fn membrane_matches_baraff_witkin_to_second_order() {
+        use crate::geom::Vec2;
+        use crate::sim::forces::stretch::stretch_terms;
+        let uv = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(0.1, 0.0),
+            Vec2::new(0.03, 0.08),
+        ];
+        let rest = TriangleRest::new(&uv[0], &uv[1], &uv[2]).unwrap();
+        let (ks, ksh) = (1000.0, 100.0);
+        let (wa, wc) = membrane_weights(ks, ksh);
+        let rot = nalgebra::Rotation3::from_euler_angles(0.3, -0.7, 1.1);
+        for (e, ratio_tol) in [(1e-2, 0.05), (1e-3, 0.005)] {
+            let strain = nalgebra::Matrix2::new(0.7 * e, 0.4 * e, 0.4 * e, -0.5 * e);
+            let fm = nalgebra::Matrix2::identity() + strain;
+            let x: Vec<Vec3> = uv
+                .iter()
+                .map(|p| {
+                    let q = fm * p;
+                    rot * Vec3::new(q.x, q.y, 0.0)
+                })
+                .collect();
+            let bw = stretch_terms(&rest, [&x[0], &x[1], &x[2]], ks, ksh).energy;
+            let f = Matrix3x2::from_columns(&[
+                x[0] * rest.a[0] + x[1] * rest.a[1] + x[2] * rest.a[2],
+                x[0] * rest.b[0] + x[1] * rest.b[1] + x[2] * rest.b[2],
+            ]);
+            let r = project_orthonormal(&f);
+            let p = project_unit_columns(&f, &r);
+            let pd = 0.5 * rest.area * (wa * (f - r).norm_squared() + wc * (f - p).norm_squared());
+            assert!(
+                ((pd - bw) / bw).abs() < ratio_tol,
+                "strain {e}: pd {pd} bw {bw}"
+            );
+        }
+    }
+}
