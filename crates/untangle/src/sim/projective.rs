@@ -76,31 +76,28 @@ pub fn project_orthonormal(f: &Matrix3x2<f64>) -> Matrix3x2<f64> {
         let v = f.column(0) * ib + f.column(1) * id;
         return Matrix3x2::from_columns(&[u, v]);
     }
-    // Rank <= 1: keep the longer column's direction, complete with the other column's part
-    // orthogonal to it (or any orthogonal direction).
+    // (Nearly) rank <= 1: f = s1 u v^T + s2 u2 v2^T with s2 ~ 0; u from the longer column,
+    // v = f^T u normalised, u2 along f v2 (or any direction orthogonal to u when s2 = 0).
     let (cu, cv) = (f.column(0).into_owned(), f.column(1).into_owned());
-    let swap = cv.norm_squared() > cu.norm_squared();
-    let (d, o) = if swap { (cv, cu) } else { (cu, cv) };
-    let e1 = if d.norm() > 0.0 {
-        d.normalize()
+    let d = if cv.norm_squared() > cu.norm_squared() {
+        cv
     } else {
-        Vec3::x()
+        cu
     };
-    let mut e2 = o - e1 * e1.dot(&o);
-    if e2.norm() <= 1e-9 * (1.0 + o.norm()) {
-        let axis = if e1.x.abs() < 0.9 {
-            Vec3::x()
-        } else {
-            Vec3::y()
-        };
-        e2 = axis - e1 * e1.dot(&axis);
+    if d.norm() == 0.0 {
+        return Matrix3x2::from_columns(&[Vec3::x(), Vec3::y()]);
     }
-    let e2 = e2.normalize();
-    if swap {
-        Matrix3x2::from_columns(&[e2, e1])
-    } else {
-        Matrix3x2::from_columns(&[e1, e2])
+    let u = d.normalize();
+    let v = (f.transpose() * u).normalize();
+    let v2 = nalgebra::Vector2::new(-v.y, v.x);
+    let mut u2 = f * v2;
+    u2 -= u * u.dot(&u2);
+    if u2.norm() <= 1e-14 * d.norm() {
+        let axis = if u.x.abs() < 0.9 { Vec3::x() } else { Vec3::y() };
+        u2 = axis - u * u.dot(&axis);
     }
+    let u2 = u2.normalize();
+    u * v.transpose() + u2 * v2.transpose()
 }
 
 /// The closest 3x2 matrix with unit columns: each column normalised (a zero column becomes the
