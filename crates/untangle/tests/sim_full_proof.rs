@@ -9,7 +9,15 @@ use untangle::analysis::{analyze, AnalysisMesh, ObjectKind};
 use untangle::geom::{Vec2, Vec3};
 use untangle::mesh::{Garment, Mesh};
 use untangle::scenes::handkerchief;
-use untangle::sim::{Obstacle, SimParams, Simulator, StepReport, UniformThickness};
+use untangle::sim::{Integrator, Obstacle, SimParams, Simulator, StepReport, UniformThickness};
+
+/// Default parameters with projective dynamics as the integrator.
+fn projective() -> SimParams {
+    SimParams {
+        integrator: Integrator::Projective,
+        ..SimParams::default()
+    }
+}
 
 /// A square floor (two triangles) at height `y`.
 fn floor(y: f64, half: f64) -> Mesh {
@@ -79,12 +87,17 @@ fn run_checked(
 
 /// A sheet standing on its lower edge collapses onto a floor and folds onto itself.
 fn folding_sheet(n: usize) -> (Mesh, Simulator, Vec<Mesh>) {
+    folding_sheet_with(n, SimParams::default())
+}
+
+/// [`folding_sheet`] with the given parameters.
+fn folding_sheet_with(n: usize, params: SimParams) -> (Mesh, Simulator, Vec<Mesh>) {
     let cloth = handkerchief("sheet", n, n, 0.5, 0.5, |p| {
         // Vertical, slightly wavy so it buckles into several folds.
         Vec3::new(p.x, p.y + 0.27, 0.02 * (6.0 * p.y).sin() + 0.01 * p.x)
     });
     let g = Garment::new(cloth.clone()).unwrap();
-    let mut sim = Simulator::new(&g, SimParams::default()).unwrap();
+    let mut sim = Simulator::new(&g, params).unwrap();
     let fl = floor(0.0, 2.0);
     sim.add_obstacle(Obstacle::from_mesh(&fl, 2e-3, 0.3).unwrap())
         .unwrap();
@@ -93,7 +106,16 @@ fn folding_sheet(n: usize) -> (Mesh, Simulator, Vec<Mesh>) {
 
 #[test]
 fn sheet_falling_onto_itself_in_folds_stays_intersection_free() {
-    let (cloth, mut sim, obs) = folding_sheet(14);
+    falling_sheet_stays_clean(SimParams::default());
+}
+
+#[test]
+fn sheet_falling_onto_itself_in_folds_stays_intersection_free_with_projective_dynamics() {
+    falling_sheet_stays_clean(projective());
+}
+
+fn falling_sheet_stays_clean(params: SimParams) {
+    let (cloth, mut sim, obs) = folding_sheet_with(14, params);
     let c = run_checked(&cloth, &mut sim, &obs, 250, 2e-3, |_, _| {});
     let contacts: usize = c
         .reports
@@ -174,11 +196,20 @@ fn dropped_sheets_stay_clean_and_unstretched() {
 /// strip coils onto itself.
 #[test]
 fn twisted_strip_stays_intersection_free() {
+    twisted_strip(SimParams::default());
+}
+
+#[test]
+fn twisted_strip_stays_intersection_free_with_projective_dynamics() {
+    twisted_strip(projective());
+}
+
+fn twisted_strip(params: SimParams) {
     let (nx, ny) = (40, 3);
     let (len, w) = (0.8, 0.06);
     let cloth = handkerchief("strip", nx, ny, len, w, |p| Vec3::new(p.x, 0.5, p.y));
     let g = Garment::new(cloth.clone()).unwrap();
-    let mut sim = Simulator::new(&g, SimParams::default()).unwrap();
+    let mut sim = Simulator::new(&g, params).unwrap();
     let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
     let left: Vec<u32> = (0..=ny).map(|j| id(0, j)).collect();
     let right: Vec<u32> = (0..=ny).map(|j| id(nx, j)).collect();
@@ -225,7 +256,7 @@ fn twisted_strip_stays_intersection_free() {
     assert_eq!(c.quits, 0);
 }
 
-fn final_positions(threads: usize) -> Vec<Vec3> {
+fn final_positions(threads: usize, params: SimParams) -> Vec<Vec3> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -233,7 +264,7 @@ fn final_positions(threads: usize) -> Vec<Vec3> {
         .install(|| {
             // Large enough that the parallel code paths (chunks of 512 vertices, BVH
             // subtrees of 2048 primitives) really split.
-            let (_, mut sim, _) = folding_sheet(40);
+            let (_, mut sim, _) = folding_sheet_with(40, params.clone());
             let policy = UniformThickness(2e-3);
             for _ in 0..6 {
                 sim.step(&policy);
@@ -244,11 +275,13 @@ fn final_positions(threads: usize) -> Vec<Vec3> {
 
 #[test]
 fn one_and_two_threads_give_bit_identical_positions() {
-    let a = final_positions(1);
-    let b = final_positions(2);
-    assert_eq!(a.len(), b.len());
-    for (p, q) in a.iter().zip(&b) {
-        assert_eq!(p.map(f64::to_bits), q.map(f64::to_bits));
+    for params in [SimParams::default(), projective()] {
+        let a = final_positions(1, params.clone());
+        let b = final_positions(2, params);
+        assert_eq!(a.len(), b.len());
+        for (p, q) in a.iter().zip(&b) {
+            assert_eq!(p.map(f64::to_bits), q.map(f64::to_bits));
+        }
     }
 }
 

@@ -857,7 +857,10 @@ impl Simulator {
         }
         let c_m = 1.0 + h * p.damping_mass;
         let inertia: Vec<f64> = self.mass.iter().map(|m| c_m * m / (h * h)).collect();
-        let damping = p.damping_stiffness / h;
+        // Stiffness damping is left out: the constant elastic matrix does not vanish on
+        // rotations, so `beta/(2h) |x - x_n|_L^2` damps rigid swinging (a hanging sheet crept
+        // down for seconds). Mass damping and implicit Euler dissipate (docs/projective.md).
+        let damping = 0.0;
         let values = pd.system.system_values(&inertia, damping);
         let key = FactorKey {
             h,
@@ -926,8 +929,10 @@ impl Simulator {
             absolute: p.cg_tolerance * p.gravity.norm() * h * self.total_mass.sqrt(),
             max_iterations: p.cg_max_iterations,
         };
-        // Start at the predicted positions.
-        let mut x: Vec<Vec3> = (0..n).map(|i| self.x[i] + v_pred[i] * h).collect();
+        // Start at the inertial target `y` (Bouaziz et al. 2014, Alg. 1). Starting at the
+        // extrapolated prediction `x + h (v + dv_prev)` instead injected energy whenever the
+        // iterations had not converged (a hanging sheet swung higher and higher).
+        let mut x = y.clone();
         let mut cg = PcgResult {
             converged: true,
             ..Default::default()
