@@ -85,6 +85,54 @@ fn simulate_writes_result_json_and_frames() {
     assert_eq!(frames.len(), 3, "steps 5, 10 and the last");
 }
 
+/// `--integrator projective`: the report carries the local/global iterations of every step;
+/// the pinned corners stay and the cloth falls, without intersections.
+#[test]
+fn simulate_with_projective_dynamics() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("g.obj"), grid_obj()).unwrap();
+    let args = [
+        "simulate",
+        "g.obj",
+        "-o",
+        "out.obj",
+        "--steps",
+        "8",
+        "--pin",
+        "1,7",
+        "--json",
+        "r.json",
+        "--integrator",
+        "projective",
+        "--pd-iterations",
+        "6",
+        "--quiet",
+    ];
+    let out = untangle(&args, dir.path());
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("r.json")).unwrap()).unwrap();
+    let reports = json["reports"].as_array().unwrap();
+    assert_eq!(reports.len(), 8);
+    for r in reports {
+        assert_eq!(r["projective"]["iterations"].as_u64(), Some(6));
+    }
+    assert_eq!(json["end_intersecting_pairs"], 0);
+    let text = std::fs::read_to_string(dir.path().join("out.obj")).unwrap();
+    let ys: Vec<f64> = text
+        .lines()
+        .filter(|l| l.starts_with("v "))
+        .map(|l| l.split_whitespace().nth(2).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!((ys[0], ys[6]), (1.0, 1.0));
+    assert!(ys[48] < 0.99);
+}
+
 #[test]
 fn bad_input_exits_2_with_one_line() {
     let dir = tempfile::tempdir().unwrap();
@@ -97,6 +145,16 @@ fn bad_input_exits_2_with_one_line() {
         vec!["simulate", "g.obj", "-o", "o.obj", "--dt", "-1"],
         vec!["simulate", "g.obj", "-o", "g.obj"],
         vec!["simulate", "g.obj", "-o", "o.obj", "--body", "nothing.obj"],
+        vec![
+            "simulate",
+            "g.obj",
+            "-o",
+            "o.obj",
+            "--integrator",
+            "projective",
+            "--pd-iterations",
+            "0",
+        ],
     ] {
         let out = untangle(&args, dir.path());
         assert_eq!(out.status.code(), Some(2), "{args:?}");

@@ -28,6 +28,8 @@ fn main() {
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();
     p.max_steps = steps;
+    // UNTANGLE_INTEGRATOR=projective: projective dynamics (see `common`).
+    p.sim = common::integrator_params(p.sim);
     let mut r = Resolver::new(&g, p).expect("resolver");
     let t = std::time::Instant::now();
     let s = r

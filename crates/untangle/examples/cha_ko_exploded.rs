@@ -39,6 +39,8 @@ fn main() {
         let mut p = ResolveParams::default();
         p.sim.gravity = Vec3::zeros();
         p.max_steps = max_steps as usize;
+        // UNTANGLE_INTEGRATOR=projective: projective dynamics (see `common`).
+        p.sim = common::integrator_params(p.sim);
         // Parameter experiments: CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA,
         // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT,
         // CHAKO_ZONE_SPIN (0: impact zones translate), CHAKO_ZONE_SOFT (soft zone levels),

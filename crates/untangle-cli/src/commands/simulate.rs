@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use untangle::analysis::{self, AnalysisMesh, ObjectKind};
 use untangle::geom::{Aabb, Vec3};
 use untangle::mesh::{obj, Garment, Mesh};
-use untangle::sim::{Obstacle, SimParams, Simulator, StepReport, UniformThickness};
+use untangle::sim::{Integrator, Obstacle, SimParams, Simulator, StepReport, UniformThickness};
 
 /// Arguments of `simulate`.
 #[derive(clap::Args, Debug)]
@@ -69,6 +69,22 @@ pub struct Args {
     /// Gravity `X,Y,Z` (m/s^2).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "0,-9.81,0")]
     pub gravity: Vec3,
+    /// Time integrator: `baraff-witkin` (one Newton step of implicit Euler, CG) or
+    /// `projective` (projective dynamics: local/global iterations with a pre-factored matrix).
+    #[arg(long, value_enum, default_value_t = IntegratorArg::BaraffWitkin)]
+    pub integrator: IntegratorArg,
+    /// Local/global iterations per step of `--integrator projective`.
+    #[arg(long, default_value_t = 10)]
+    pub pd_iterations: usize,
+}
+
+/// `--integrator` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IntegratorArg {
+    /// Baraff & Witkin 1998.
+    BaraffWitkin,
+    /// Projective dynamics (Bouaziz et al. 2014).
+    Projective,
 }
 
 fn parse_vec3(s: &str) -> std::result::Result<Vec3, String> {
@@ -270,6 +286,11 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         bend_stiffness: args.bend,
         friction: args.friction,
         gravity: args.gravity,
+        integrator: match args.integrator {
+            IntegratorArg::BaraffWitkin => Integrator::BaraffWitkin,
+            IntegratorArg::Projective => Integrator::Projective,
+        },
+        projective_iterations: args.pd_iterations,
         ..SimParams::default()
     };
     let mut sim = Simulator::new(&garment, params.clone())
