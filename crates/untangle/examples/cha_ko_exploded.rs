@@ -11,6 +11,8 @@
 //! ```
 
 use std::time::Instant;
+mod common;
+
 use untangle::analysis::{analyze, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
