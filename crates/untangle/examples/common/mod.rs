@@ -36,7 +36,8 @@ pub fn arg(i: usize, default: usize) -> usize {
 
 /// The integrator picked by the environment: `UNTANGLE_INTEGRATOR=projective` (or `pd`) selects
 /// projective dynamics, anything else (or unset) Baraff & Witkin; `UNTANGLE_PD_ITERATIONS` sets
-/// the local/global iterations per step (default: the library's).
+/// the local/global iterations per step (default: the library's), `UNTANGLE_PD_CHEBYSHEV` the
+/// Chebyshev spectral radius (0 = off).
 pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimParams {
     use untangle::sim::Integrator;
     if let Ok(s) = std::env::var("UNTANGLE_INTEGRATOR") {
@@ -50,6 +51,12 @@ pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimP
         .and_then(|s| s.parse().ok())
     {
         p.projective_iterations = k;
+    }
+    if let Some(r) = std::env::var("UNTANGLE_PD_CHEBYSHEV")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        p.projective_chebyshev = r;
     }
     p
 }
