@@ -863,7 +863,6 @@ impl Simulator {
             key: None,
             rest_changed: false,
             factor_exact: false,
-            baseline: None,
             last: 0,
         });
         if pd.system.elastic() != elastic {
@@ -883,10 +882,9 @@ impl Simulator {
             elastic,
             pinned: self.pinned.clone(),
         };
-        let degraded = pd.rest_changed
-            && pd
-                .baseline
-                .is_some_and(|b| pd.last > PD_REFACTOR_FACTOR * b + PD_REFACTOR_SLACK);
+        // The kept factor of an older rest shape preconditions CG; once a global step of the
+        // previous step needed more than a few CG iterations, factor the current matrix.
+        let degraded = pd.rest_changed && pd.last > PD_REFACTOR_CG;
         let mut result = ProjectiveResult::default();
         if pd.factor.is_none() || pd.key.as_ref() != Some(&key) || degraded {
             let tf = Instant::now();
@@ -904,7 +902,6 @@ impl Simulator {
             pd.key = Some(key);
             pd.rest_changed = false;
             pd.factor_exact = pd.factor.is_some();
-            pd.baseline = None;
             result.refactored = true;
             result.factor_ms = tf.elapsed().as_secs_f64() * 1e3;
         }
@@ -941,8 +938,11 @@ impl Simulator {
         let settings = PcgSettings {
             tolerance: p.cg_tolerance,
             absolute: p.cg_tolerance * p.gravity.norm() * h * self.total_mass.sqrt(),
-            max_iterations: p.cg_max_iterations,
+            // Inexact global steps keep the energy decreasing (CG from the current iterate
+            // only lowers the quadratic), and the next iteration solves again.
+            max_iterations: p.cg_max_iterations.min(PD_CG_CAP),
         };
+        let mut largest_cg = 0;
         // Start at the inertial target `y` (Bouaziz et al. 2014, Alg. 1). Starting at the
         // extrapolated prediction `x + h (v + dv_prev)` instead injected energy whenever the
         // iterations had not converged (a hanging sheet swung higher and higher).
@@ -1075,6 +1075,7 @@ impl Simulator {
                 result.global_ms += tg.elapsed().as_secs_f64() * 1e3;
                 result.iterations += 1;
                 cg.iterations += r.iterations;
+                largest_cg = largest_cg.max(r.iterations);
                 cg.relative_residual = r.relative_residual;
                 cg.converged &= r.converged;
                 if result.iterations >= p.projective_iterations {
@@ -1106,10 +1107,7 @@ impl Simulator {
         }
         result.cg_iterations = cg.iterations;
         result.relative_residual = cg.relative_residual;
-        if pd.baseline.is_none() {
-            pd.baseline = Some(cg.iterations);
-        }
-        pd.last = cg.iterations;
+        pd.last = largest_cg;
         // Normal impulses of the kept contacts (friction bound of the next step): the
         // constraint force of the last global step times h.
         self.contact_impulse.iter_mut().for_each(|l| *l = 0.0);
@@ -1297,12 +1295,11 @@ struct Solved {
     assembled: Instant,
 }
 
-/// Iterations of a projective step above which, once the rest shape changed, the factor is
-/// recomputed: this many times the iterations of the first step after the last factorisation
-/// plus [`PD_REFACTOR_SLACK`].
-const PD_REFACTOR_FACTOR: usize = 2;
-/// Iterations added to the refactor threshold.
-const PD_REFACTOR_SLACK: usize = 8;
+/// CG iterations of one projective global step above which, once the rest shape changed, the
+/// factor is recomputed for the next step.
+const PD_REFACTOR_CG: usize = 3;
+/// Cap of the CG iterations of one projective global step.
+const PD_CG_CAP: usize = 10;
 
 /// What the factor of the projective global matrix was computed for.
 #[derive(Clone, Debug, PartialEq)]
@@ -1323,8 +1320,7 @@ struct PdState {
     rest_changed: bool,
     /// Whether the factor is of the current base matrix (no rest change since).
     factor_exact: bool,
-    /// CG iterations of the first step after the factorisation, and of the last step.
-    baseline: Option<usize>,
+    /// Most CG iterations of one global step in the last step.
     last: usize,
 }
 
