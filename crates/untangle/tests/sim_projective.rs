@@ -96,6 +96,13 @@ fn rest_uv_edits_drive_the_shape_through_the_kept_factor() {
     let mut sim = Simulator::new(&g, p).unwrap();
     let policy = UniformThickness(1e-3);
     sim.step(&policy);
+    // A uniform scaling leaves the elastic matrix unchanged (area x |Dm^-1|^2): the factor
+    // stays exact, one direct solve per global step, no refactorisation.
+    let scaled: Vec<Vec2> = g.uv().coords.iter().map(|u| u * 0.97).collect();
+    sim.set_rest_uv(&scaled).unwrap();
+    let r = sim.step(&policy).projective.unwrap();
+    assert!(!r.refactored);
+    assert_eq!(r.cg_iterations, r.iterations);
     let uv: Vec<Vec2> = g
         .uv()
         .coords

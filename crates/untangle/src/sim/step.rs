@@ -413,7 +413,6 @@ impl Simulator {
             // with it and refactors when that needs many more iterations.
             pd.system.set_rest(&self.rest);
             pd.rest_changed = true;
-            pd.factor_exact = false;
         }
         Ok(())
     }
@@ -863,6 +862,7 @@ impl Simulator {
             key: None,
             rest_changed: false,
             factor_exact: false,
+            factored_values: Vec::new(),
             last: 0,
         });
         if pd.system.elastic() != elastic {
@@ -884,7 +884,18 @@ impl Simulator {
         };
         // The kept factor of an older rest shape preconditions CG; once a global step of the
         // previous step needed more than a few CG iterations, factor the current matrix.
-        let degraded = pd.rest_changed && pd.last > PD_REFACTOR_CG;
+        if pd.rest_changed {
+            // A rest edit that leaves the matrix as it was (e.g. a uniform scaling of a
+            // triangle: area x |Dm^-1|^2 is invariant) keeps the factor exact.
+            pd.factor_exact = pd.factored_values.len() == values.len()
+                && pd
+                    .factored_values
+                    .iter()
+                    .zip(&values)
+                    .all(|(a, b)| (a - b).abs() <= 1e-12 * a.abs().max(b.abs()));
+            pd.rest_changed = false;
+        }
+        let degraded = !pd.factor_exact && pd.last > PD_REFACTOR_CG;
         let mut result = ProjectiveResult::default();
         if pd.factor.is_none() || pd.key.as_ref() != Some(&key) || degraded {
             let tf = Instant::now();
@@ -900,8 +911,8 @@ impl Simulator {
             }
             pd.factor = f;
             pd.key = Some(key);
-            pd.rest_changed = false;
             pd.factor_exact = pd.factor.is_some();
+            pd.factored_values.clone_from(&values);
             result.refactored = true;
             result.factor_ms = tf.elapsed().as_secs_f64() * 1e3;
         }
@@ -1316,10 +1327,12 @@ struct PdState {
     system: Projective,
     factor: Option<ScalarCholesky>,
     key: Option<FactorKey>,
-    /// Whether the rest shape changed since the factorisation.
+    /// Whether the rest shape changed since the last step.
     rest_changed: bool,
-    /// Whether the factor is of the current base matrix (no rest change since).
+    /// Whether the factor is of the current base matrix.
     factor_exact: bool,
+    /// The scalar matrix the factor is of.
+    factored_values: Vec<f64>,
     /// Most CG iterations of one global step in the last step.
     last: usize,
 }
