@@ -10,6 +10,8 @@
 //!   so seams are simulated once.
 //! - Linear algebra: a 3x3 block-sparse matrix ([`sparse`]) and conjugate gradients with the
 //!   constraint filter ([`pcg`]).
+//! - Opt-in alternative integrator ([`step::Integrator::Projective`]): projective dynamics
+//!   (Bouaziz et al. 2014, [`projective`]) with a pre-factored scalar matrix ([`cholesky`]).
 //! - Obstacles ([`obstacle`]): static or moving meshes with thickness and friction.
 //! - Collision handling ([`collision`]): proximity repulsion, iterated CCD impulses and rigid
 //!   impact zones as the fail-safe, with a per-pair [`policy::ContactPolicy`] (skip / thickness)
