@@ -358,7 +358,7 @@ impl Projective {
     }
 }
 
-/// One implicit step's problem for [`solve`]: inertia, damping, constraints and the extra
+/// One implicit step's problem for [`Projective::global_step`]: inertia, damping, constraints and the extra
 /// (contact) terms of the global system.
 pub struct StepProblem<'a> {
     /// Start-of-step positions `x_n`.
@@ -385,7 +385,7 @@ pub struct StepProblem<'a> {
     pub targets: &'a [Vec3],
 }
 
-/// What [`solve`] did.
+/// What the local/global iterations of one step did (`StepReport::projective`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct ProjectiveResult {
     /// Local/global iterations run.
