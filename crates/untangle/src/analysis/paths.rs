@@ -332,14 +332,13 @@ fn walk_chains(links: &[[u32; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8
 
 /// The edges crossed an odd number of times between the pieces of `steps`; when the sub-path
 /// starts or ends with a `B` end, that boundary edge counts too. `across` is per piece end the
-/// edge passed across there (from [`link_pieces`]); `edges` is scratch space.
+/// edge passed across there (from [`link_pieces`]).
 fn cut_of(
     across: &[[u32; 2]],
     steps: &[(u32, u8)],
     (closed, b_start, b_end): (bool, bool, bool),
-    edges: &mut Vec<u32>,
+    odd: &mut OddEdges,
 ) -> Vec<u32> {
-    edges.clear();
     let count = steps.len();
     let transitions = if closed {
         count
@@ -349,7 +348,7 @@ fn cut_of(
     let mut push = |p: u32, exit: u8| {
         let e = across[p as usize][exit as usize];
         if e != NONE {
-            edges.push(e);
+            odd.toggle(e);
         }
     };
     for &(p, e) in &steps[..transitions] {
@@ -363,21 +362,62 @@ fn cut_of(
         let (p, e) = steps[count - 1];
         push(p, 1 - e);
     }
-    edges.sort_unstable();
-    // Keep edges crossed an odd number of times.
-    let mut out = Vec::with_capacity(edges.len());
-    let mut i = 0;
-    while i < edges.len() {
-        let mut j = i;
-        while j < edges.len() && edges[j] == edges[i] {
-            j += 1;
+    odd.take()
+}
+
+/// The edges seen an odd number of times, sorted, without sorting the sequence: a parity bit
+/// per edge, read back word by word over the span of the edges seen when that span is short
+/// (a path's edges are close in index), else from the list of edges seen, sorted.
+struct OddEdges {
+    /// Parity bit of each edge; all zero between uses.
+    parity: Vec<u64>,
+    /// Edges seen since the last [`OddEdges::take`], with repetitions.
+    seen: Vec<u32>,
+}
+
+impl OddEdges {
+    fn new(num_edges: usize) -> Self {
+        OddEdges {
+            parity: vec![0; num_edges / 64 + 1],
+            seen: Vec::new(),
         }
-        if (j - i) % 2 == 1 {
-            out.push(edges[i]);
-        }
-        i = j;
     }
-    out
+
+    #[inline]
+    fn toggle(&mut self, e: u32) {
+        self.parity[(e / 64) as usize] ^= 1 << (e % 64);
+        self.seen.push(e);
+    }
+
+    /// The edges toggled an odd number of times since the last call, ascending; clears.
+    fn take(&mut self) -> Vec<u32> {
+        let (Some(&lo), Some(&hi)) = (self.seen.iter().min(), self.seen.iter().max()) else {
+            return Vec::new();
+        };
+        let (w0, w1) = ((lo / 64) as usize, (hi / 64) as usize);
+        let mut out = Vec::with_capacity(self.seen.len());
+        if w1 - w0 < 4 * self.seen.len() + 8 {
+            for (w, word) in self.parity[w0..=w1].iter_mut().enumerate() {
+                let mut x = std::mem::take(word);
+                while x != 0 {
+                    out.push(((w0 + w) * 64) as u32 + x.trailing_zeros());
+                    x &= x - 1;
+                }
+            }
+        } else {
+            for &e in &self.seen {
+                let word = &mut self.parity[(e / 64) as usize];
+                let bit = 1u64 << (e % 64);
+                if *word & bit != 0 {
+                    *word &= !bit;
+                    out.push(e);
+                }
+            }
+            out.sort_unstable();
+        }
+        self.seen.clear();
+        out
+    }
 }
 
 /// Paths and tanglements of the given segments.
@@ -389,7 +429,7 @@ pub fn trace_paths(
     let (links, across) = link_pieces(mesh, crossings, segs)?;
     let (chains, all_steps) = walk_chains(&links, segs);
     let steps_of = |c: &Chain| &all_steps[c.steps.clone()];
-    let mut scratch = Vec::new();
+    let mut scratch = OddEdges::new(mesh.topology.num_edges());
     let object_of_piece = |p: u32| mesh.object_of_triangle[piece_triangle(segs, p) as usize];
 
     // Classify chains; BLI chains are grouped by loop vertex to find CROSS pairs.
@@ -658,5 +698,40 @@ fn tanglement_kind(p: &Path, q: Option<&Path>) -> String {
             format!("{}{}", names[0], names[1])
         }
         (a, None) => a.name().into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The parity bits give the edges seen an odd number of times, sorted (the oracle:
+        /// count every edge), for clustered (word scan) and spread-out (sorted list) edges, and
+        /// leave the bits clear for the next use.
+        #[test]
+        fn odd_edges_match_counting(
+            batches in proptest::collection::vec(
+                proptest::collection::vec((0u32..40, 0u32..3), 0..60), 1..5),
+            spread in prop_oneof![Just(1u32), Just(997u32)],
+        ) {
+            let num_edges = 40 * spread as usize + 1;
+            let mut odd = OddEdges::new(num_edges);
+            for batch in &batches {
+                let mut count = std::collections::BTreeMap::<u32, usize>::new();
+                for &(e, reps) in batch {
+                    let e = e * spread;
+                    for _ in 0..=reps {
+                        odd.toggle(e);
+                        *count.entry(e).or_default() += 1;
+                    }
+                }
+                let brute: Vec<u32> =
+                    count.into_iter().filter(|&(_, c)| c % 2 == 1).map(|(e, _)| e).collect();
+                prop_assert_eq!(odd.take(), brute);
+                prop_assert!(odd.parity.iter().all(|&w| w == 0));
+            }
+        }
     }
 }
