@@ -19,7 +19,14 @@
 //! of every remaining crossing pair apart along the mean of the two layers' outward field
 //! normals — the outer one out, the inner one in, shared in the ratio of the stiffness weights
 //! as in the operators (Sec. 5; the body, of infinite weight, never moves) — until the analysis
-//! finds no crossing between objects (see [`separate_pairs`]).
+//! finds no crossing between objects (see [`separate_pairs`]). A triangle that has once crossed
+//! a layer further in only moves out from then on, so a stack squeezed against the body
+//! expands instead of passing a layer back and forth between its neighbours.
+//!
+//! Both phases push by fixed steps with a bump, so around the crossings they leave the layers
+//! further apart than the thickness rule; [`settle`] then moves the pushed vertices back
+//! towards their projected positions wherever that creates no crossing (between objects, or a
+//! new one within a garment).
 
 use super::field::LayerField;
 use super::self_guard::{may_intersect, SelfGuard};
