@@ -56,8 +56,9 @@ pub struct RepairParams {
     /// Undo the symmetric phase's moves that make a garment intersect itself anew (see
     /// [`super::self_guard`]); the phase may then leave crossings between layers.
     pub prevent_self_intersections: bool,
-    /// Rounds of [`settle`] after the two phases: the pushed vertices move back towards their
-    /// projected positions (halfway per round) wherever that creates no crossing (0: off).
+    /// Rounds of [`settle`] after the two phases when they end clean: the pushed vertices move
+    /// back towards their projected positions (halfway per round) wherever that creates no
+    /// crossing (0: off).
     pub settle_rounds: usize,
 }
 
@@ -431,9 +432,10 @@ const SETTLE_NEGLIGIBLE: f64 = 0.05;
 /// they were the vertices of every triangle pair that now crosses (exact test of the analysis)
 /// and did not at the round's start — between two objects, or within one garment — repeatedly
 /// until none is left (the positions at the round's start pass the test, so this ends). A
-/// vertex put back tries half its fraction in the next round, and stops below 1/16. The output therefore has no crossing between objects if the input has none, no
-/// self-crossing pair of a garment that the input does not have, and every vertex lies between
-/// its repaired and its projected position. Returns the number of vertices that moved back.
+/// vertex put back tries half its fraction in the next round, and stops below 1/16. The output
+/// therefore has no crossing between objects if the input has none, no self-crossing pair of
+/// a garment that the input does not have, and every vertex lies between its repaired and its
+/// projected position. Returns the number of vertices that moved back.
 pub fn settle(
     body: Option<(&Mesh, &dyn LayerField)>,
     layers: &[RepairLayer],
