@@ -304,14 +304,29 @@ pub fn sphere_gap(x: &[Vec3; 4], vt: bool) -> f64 {
 /// of a quad have a sphere gap of zero but an axis gap of the quad's width.
 #[inline]
 pub fn axis_gap(x: &[Vec3; 4], vt: bool) -> f64 {
-    let (split, centre, normal) = if vt {
-        let c = (x[1] + x[2] + x[3]) / 3.0;
-        (1, x[0] - c, (x[2] - x[1]).cross(&(x[3] - x[1])))
+    centre_gap(x, vt).max(normal_gap(x, vt))
+}
+
+/// The separating-axis bound of [`axis_gap`] along the axis through the primitives' centres
+/// alone (the one that separates neighbours on a sheet).
+#[inline]
+pub fn centre_gap(x: &[Vec3; 4], vt: bool) -> f64 {
+    if vt {
+        separation_along(x, 1, &(x[0] - (x[1] + x[2] + x[3]) / 3.0))
     } else {
-        let d = (x[2] + x[3] - x[0] - x[1]) * 0.5;
-        (2, d, (x[1] - x[0]).cross(&(x[3] - x[2])))
-    };
-    separation_along(x, split, &centre).max(separation_along(x, split, &normal))
+        separation_along(x, 2, &((x[2] + x[3] - x[0] - x[1]) * 0.5))
+    }
+}
+
+/// The separating-axis bound of [`axis_gap`] along the triangle's normal (or the edges'
+/// common normal) alone (the one that separates stacked layers).
+#[inline]
+pub fn normal_gap(x: &[Vec3; 4], vt: bool) -> f64 {
+    if vt {
+        separation_along(x, 1, &(x[2] - x[1]).cross(&(x[3] - x[1])))
+    } else {
+        separation_along(x, 2, &(x[1] - x[0]).cross(&(x[3] - x[2])))
+    }
 }
 
 /// The gap between the projections onto the direction `u` of nodes `x[..split]` and

@@ -62,6 +62,19 @@ pub fn dormant(x: &[Vec3; 4], vel: &[Vec3; 4], vt: bool, eps: f64, h: f64) -> bo
 /// [`dormant`] with the pair's [`super::axis_gap`] and [`super::coordinate_scale`] given.
 #[inline]
 fn dormant_given_gap(gap: f64, scale: f64, vel: &[Vec3; 4], vt: bool, eps: f64, h: f64) -> bool {
+    super::gap_exceeds(
+        gap,
+        scale,
+        dormant_distance(eps, relative_speed(vel, vt), h),
+    )
+}
+
+/// The largest speed of a node of one primitive relative to a node of the other (nodes
+/// `[p, a, b, c]` when `vt`, else two edges), rounded up: a bound of the pair's relative
+/// normal velocity at any closest points, and `h` times it a bound of how much the distance
+/// can shrink over the step.
+#[inline]
+pub fn relative_speed(vel: &[Vec3; 4], vt: bool) -> f64 {
     let split = if vt { 1 } else { 2 };
     let mut rel = 0.0f64;
     for i in 0..split {
@@ -70,14 +83,19 @@ fn dormant_given_gap(gap: f64, scale: f64, vel: &[Vec3; 4], vt: bool, eps: f64, 
         }
     }
     let vmax = vel.iter().fold(0.0f64, |m, w| m.max(w.amax()));
-    let rel = rel.sqrt() * (1.0 + 1e-9) + 1e-9 * vmax;
-    let d = (2.0 * eps).max(eps + rel * h * (1.0 + 1e-9));
-    super::gap_exceeds(gap, scale, d)
+    rel.sqrt() * (1.0 + 1e-9) + 1e-9 * vmax
+}
+
+/// The distance beyond which a pair with thickness `eps` and [`relative_speed`] `rel` is
+/// dormant (see [`dormant`]).
+#[inline]
+fn dormant_distance(eps: f64, rel: f64, h: f64) -> f64 {
+    (2.0 * eps).max(eps + rel * h * (1.0 + 1e-9))
 }
 
 /// What screening learnt about a pair's start state, for the first CCD pass: its
-/// [`super::axis_gap`] and [`super::coordinate_scale`] at the start, and its start distance if
-/// the closest points were computed.
+/// [`super::axis_gap`] (or another lower distance bound) and [`super::coordinate_scale`] at the
+/// start, and its start distance if the closest points were computed.
 #[derive(Clone, Copy, Debug)]
 pub struct StartState {
     /// Lower distance bound at the start.
@@ -89,9 +107,12 @@ pub struct StartState {
 }
 
 /// Proximity's verdict on candidate `p` (nodes `nodes`, start positions `x`, thickness `eps`)
-/// at the velocities `v` the step starts with, and what it learnt about the start state
-/// (shared with the first CCD pass). With `lazy` (allowed only without `within_reach`), inert
+/// at the velocities `v` the step starts with, what it learnt about the start state (shared
+/// with the first CCD pass), and whether the start gap already shows that CCD with thickness
+/// `ccd_eps` finds nothing (the gap exceeds `ccd_eps` plus the largest relative displacement
+/// of the pair's nodes over the step). With `lazy` (allowed only without `within_reach`), inert
 /// pairs are [`Verdict::Dormant`] instead of having their closest points computed.
+#[allow(clippy::too_many_arguments)]
 pub fn screen_pair(
     scene: &Scene,
     v: &[Vec3],
@@ -100,18 +121,12 @@ pub fn screen_pair(
     nodes: &[u32; 4],
     x: &[Vec3; 4],
     lazy: bool,
-) -> (Verdict, StartState) {
+    ccd_eps: f64,
+) -> (Verdict, StartState, bool) {
     let vt = p.is_vertex_triangle();
     let vel = nodes.map(|k| scene.velocity(v, k));
     let h = scene.h;
-    let mut start = StartState {
-        gap: super::axis_gap(x, vt),
-        scale: super::coordinate_scale(x),
-        distance: None,
-    };
-    if lazy && dormant_given_gap(start.gap, start.scale, &vel, vt, eps, h) {
-        return (Verdict::Dormant, start);
-    }
+    let rel = relative_speed(&vel, vt);
     // Cheap rejection: the reach below is at most the fastest node of each primitive's speed
     // times h, and the distance at least the axis gap (a pair rejected here would be found
     // neither close nor active by its closest points either).
@@ -119,8 +134,29 @@ pub fn screen_pair(
     let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
     let reach_max = (speed(0..split) + speed(split..4)) * h;
     let far = (2.0 * eps).max(eps + 2.0 * reach_max);
-    if super::gap_exceeds(start.gap, start.scale, far) {
-        return (Verdict::Far, start);
+    let dormant_at = if lazy {
+        dormant_distance(eps, rel, h)
+    } else {
+        f64::INFINITY
+    };
+    let ccd_at = ccd_eps + rel * h * (1.0 + 1e-9);
+    // The centre axis settles most pairs; the normal axis only when it does not.
+    let scale = super::coordinate_scale(x);
+    let mut gap = super::centre_gap(x, vt);
+    if !super::gap_exceeds(gap, scale, dormant_at.min(far).max(ccd_at)) {
+        gap = gap.max(super::normal_gap(x, vt));
+    }
+    let mut start = StartState {
+        gap,
+        scale,
+        distance: None,
+    };
+    let ccd_settled = super::gap_exceeds(gap, scale, ccd_at);
+    if super::gap_exceeds(gap, scale, dormant_at) {
+        return (Verdict::Dormant, start, ccd_settled);
+    }
+    if super::gap_exceeds(gap, scale, far) {
+        return (Verdict::Far, start, ccd_settled);
     }
     let geom = closest(x, vt);
     start.distance = Some(geom.distance);
@@ -133,7 +169,7 @@ pub fn screen_pair(
     let close = geom.distance < 2.0 * eps;
     let active = gap <= 2.0 * reach;
     if !active && !close {
-        return (Verdict::Far, start);
+        return (Verdict::Far, start, ccd_settled);
     }
     // Target normal velocity: approach no closer than eps by the end of the step; inside eps,
     // move out at PUSH_OUT of the overlap per step.
@@ -153,6 +189,7 @@ pub fn screen_pair(
             close,
         }),
         start,
+        ccd_settled,
     )
 }
 
@@ -233,7 +270,7 @@ pub fn repel(
                 let x = scene.positions(v, &nodes, 0.0);
                 Some((
                     p,
-                    screen_pair(scene, v, p, eps, &nodes, &x, !within_reach).0,
+                    screen_pair(scene, v, p, eps, &nodes, &x, !within_reach, 0.0).0,
                 ))
             })
             .collect()
@@ -304,7 +341,7 @@ fn sweeps(
                     .thickness(pair, policy)
                     .expect("dormant pairs have a thickness");
                 let x = scene.positions(&v_start, &nodes, 0.0);
-                index = match screen_pair(scene, &v_start, pair, eps, &nodes, &x, false).0 {
+                index = match screen_pair(scene, &v_start, pair, eps, &nodes, &x, false, 0.0).0 {
                     Verdict::Near(n) => {
                         near.nears.push(n);
                         impulsed.push(false);
@@ -470,7 +507,10 @@ mod tests {
                     if let Some(eps) = scene.thickness(p, &policy) {
                         let nodes = scene.nodes(p);
                         let x = scene.positions(&v0, &nodes, 0.0);
-                        eager.push(p, screen_pair(&scene, &v0, p, eps, &nodes, &x, false).0);
+                        eager.push(
+                            p,
+                            screen_pair(&scene, &v0, p, eps, &nodes, &x, false, 0.0).0,
+                        );
                     }
                 }
                 let mut va = v0.clone();
@@ -484,7 +524,7 @@ mod tests {
                         let x = scene.positions(&v0, &nodes, 0.0);
                         l.push(
                             p,
-                            screen_pair(&scene, &v0, p, eps, &nodes, &x, !within_reach).0,
+                            screen_pair(&scene, &v0, p, eps, &nodes, &x, !within_reach, 0.0).0,
                         );
                     }
                     l
