@@ -4,9 +4,12 @@
 //! approaching normal velocity, and pairs already inside their thickness are pushed apart at a
 //! fraction of the overlap per step; Coulomb friction acts on the tangential relative velocity.
 //!
-//! The closest-point geometry at the start of the step is computed once per pair (in parallel);
-//! the impulses are then applied in a fixed pair order (Gauss-Seidel) for a few sweeps, so the
-//! result does not depend on the thread count.
+//! The closest-point geometry at the start of the step is computed once per pair (in parallel,
+//! by the shared screening pass, [`super::screen`]); the impulses are then applied in a fixed
+//! pair order (Gauss-Seidel) for a few sweeps, so the result does not depend on the thread
+//! count. Pairs that provably get no impulse while their nodes keep their start velocities
+//! ([`dormant`]) have their closest points computed only if an impulse changes one of those
+//! velocities: the same impulses, in the same order, as computing every pair at once.
 
 use rayon::prelude::*;
 
