@@ -370,7 +370,7 @@ pub fn gap_exceeds(gap: f64, scale: f64, d: f64) -> bool {
 /// Whether [`axis_gap`] shows the pair farther apart than `d` (with a relative slack for
 /// rounding, so `false` only means "maybe closer").
 #[inline]
-pub fn sphere_apart(x: &[Vec3; 4], vt: bool, d: f64) -> bool {
+pub fn gap_apart(x: &[Vec3; 4], vt: bool, d: f64) -> bool {
     gap_exceeds(axis_gap(x, vt), coordinate_scale(x), d)
 }
 
@@ -872,7 +872,7 @@ mod tests {
             if g > 0.5 * d {
                 tight += 1;
             }
-            if sphere_apart(&x, vt, 0.01) {
+            if gap_apart(&x, vt, 0.01) {
                 assert!(d > 0.01, "case {case}");
             }
         }
