@@ -5,6 +5,8 @@
 //! patches (as in `cha_ko_seams`) and run for `steps` steps of the loop without gravity; the mean
 //! milliseconds of each part are printed, with steps per second.
 //!
+//! `CHA_KO_BENCH_VERBOSE=1` also prints each step's simulator report (JSON) to stderr.
+//!
 //! ```text
 //! cargo run --release -p untangle --example cha_ko_bench -- [subdivisions] [patches] [steps]
 //! ```
@@ -32,14 +34,23 @@ fn main() {
     p.sim = common::integrator_params(p.sim);
     let mut r = Resolver::new(&g, p).expect("resolver");
     let t = std::time::Instant::now();
-    let s = r
-        .run(|x| {
-            eprintln!(
-                "step {}: {} pairs, analysis {:.2} ms, uv {:.3} ms, rest {:.3} ms, sim {:.1} ms",
-                x.step, x.intersecting_pairs, x.ms_analysis, x.ms_uv, x.ms_rest, x.ms_sim
-            )
-        })
-        .expect("run");
+    // The loop of `Resolver::run`, driven here so that CHA_KO_BENCH_VERBOSE=1 can print each
+    // step's simulator report (JSON: collision passes, impact zones, per-phase milliseconds).
+    let verbose = std::env::var("CHA_KO_BENCH_VERBOSE").is_ok();
+    let outcome = loop {
+        if let Some(o) = r.stop_reason() {
+            break o;
+        }
+        let (x, sr) = r.step().expect("step");
+        eprintln!(
+            "step {}: {} pairs, analysis {:.2} ms, uv {:.3} ms, rest {:.3} ms, sim {:.1} ms",
+            x.step, x.intersecting_pairs, x.ms_analysis, x.ms_uv, x.ms_rest, x.ms_sim
+        );
+        if verbose {
+            eprintln!("{}", sr.to_json());
+        }
+    };
+    let s = r.summary(outcome);
     let wall = t.elapsed().as_secs_f64();
     let h = r.history();
     let n = h.len() as f64;

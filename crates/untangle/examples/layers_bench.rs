@@ -14,9 +14,11 @@
 //! projection knobs; `LAYERS_BENCH_FIELD_CHECK=1` (with VERBOSE) samples the lower layer's field
 //! at the contact vertices;
 //! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ;
+//! `LAYERS_BENCH_SETTLE=n` sets the repair's settle rounds (0: off);
 //! `LAYERS_BENCH_PLAIN_OFFSETS=1` uses eq. 13's thickness offsets as written (no gradient
 //! scaling, see `implicit::thickness::scaled_offsets`); `LAYERS_BENCH_REPAIR=step,bump` sets the
-//! repair's push step and bump radius; `LAYERS_BENCH_GAP_CHECK=1` (with VERBOSE) rebuilds the
+//! repair's push step and bump radius (optional third and fourth values: push steps and pair
+//! rounds without progress); `LAYERS_BENCH_GAP_CHECK=1` (with VERBOSE) rebuilds the
 //! fields and prints, at the contact vertices, the mesh gap against the implicit gap between
 //! the corrected surfaces, split by the length of the merged run.
 use std::path::PathBuf;
@@ -104,10 +106,23 @@ fn main() {
             if let Ok(x) = std::env::var("LAYERS_BENCH_REPAIR") {
                 // step,bump: the repair's push per step and bump radius (thickness rules).
                 let v: Vec<f64> = x.split(',').filter_map(|s| s.parse().ok()).collect();
-                if let [step, bump] = v[..] {
+                if let [step, bump, ..] = v[..] {
                     params.repair.step = step;
                     params.repair.bump = bump;
                 }
+                // Optional third and fourth values: push steps and pair rounds.
+                if let Some(&s) = v.get(2) {
+                    params.repair.steps = s as usize;
+                }
+                if let Some(&r) = v.get(3) {
+                    params.repair.pair_rounds = r as usize;
+                }
+            }
+            if let Some(x) = std::env::var("LAYERS_BENCH_SETTLE")
+                .ok()
+                .and_then(|s| s.parse().ok())
+            {
+                params.repair.settle_rounds = x;
             }
             if std::env::var_os("LAYERS_BENCH_PLAIN_OFFSETS").is_some() {
                 params.projection.scaled_offsets = false;

@@ -236,7 +236,9 @@ fn fan_crossings(ctx: &Ctx, has_obstacles: bool, patch_of: &[u32]) -> Vec<Crossi
         for (i, &a) in fan.iter().enumerate() {
             for &b in &fan[i + 1..] {
                 let (ta, tb) = (tris[a as usize], tris[b as usize]);
-                if ta.iter().filter(|x| tb.contains(x)).count() != 1 {
+                // Both contain `v`; skip the pairs sharing an edge as well.
+                let shared = |x: u32| (x == tb[0]) | (x == tb[1]) | (x == tb[2]);
+                if shared(ta[0]) as u8 + shared(ta[1]) as u8 + shared(ta[2]) as u8 != 1 {
                     continue;
                 }
                 if has_obstacles
@@ -245,7 +247,7 @@ fn fan_crossings(ctx: &Ctx, has_obstacles: bool, patch_of: &[u32]) -> Vec<Crossi
                 {
                     continue;
                 }
-                ctx.shared_vertex_pair(a, b, &mut out);
+                ctx.shared_vertex_pair(v, a, b, &mut out);
             }
         }
         out
@@ -387,19 +389,21 @@ impl Ctx<'_> {
         self.edges(b, a, tb, ta, db, out);
     }
 
-    /// Crossings between triangles `a` and `b` that share exactly one vertex: only the edge of
-    /// each opposite the shared vertex can cross the other triangle.
+    /// Crossings between triangles `a` and `b` whose only common vertex is `v`: only the edge
+    /// of each opposite `v` can cross the other triangle.
     #[inline]
-    fn shared_vertex_pair(&self, a: u32, b: u32, out: &mut Vec<Crossing>) {
+    fn shared_vertex_pair(&self, v: u32, a: u32, b: u32, out: &mut Vec<Crossing>) {
         let tris = &self.mesh.triangles;
         let topo = &self.mesh.topology;
         let pos = self.pos;
         for (x, y) in [(a, b), (b, a)] {
             let (tx, ty) = (tris[x as usize], tris[y as usize]);
-            let Some(k) = (0..3).find(|&k| !ty.contains(&tx[k]) && !ty.contains(&tx[(k + 1) % 3]))
-            else {
+            // Edge `k` runs from corner `k` to corner `k + 1`: the one after `v`'s corner is
+            // opposite `v`.
+            let Some(kv) = tx.iter().position(|&w| w == v) else {
                 continue;
             };
+            let k = (kv + 1) % 3;
             let e = topo.triangle_edges[x as usize][k];
             if topo.edge_triangles[e as usize][0] != x {
                 continue;

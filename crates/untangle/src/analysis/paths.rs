@@ -95,13 +95,19 @@ pub enum EndKind {
     Inside,
 }
 
-/// A link from one end of a piece.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Link {
-    /// Continues into `piece`, entering at its end `end`.
-    Piece { piece: u32, end: u8 },
-    /// The path ends here.
-    Terminal(EndKind),
+/// Link target of a piece end where its path ends on a boundary edge of its own mesh (`B`).
+const END_B: u32 = u32::MAX;
+/// Link target of a piece end where its path ends inside its mesh (`I`).
+const END_I: u32 = u32::MAX - 1;
+
+/// The end kind of a terminal link target.
+#[inline]
+fn end_kind(link: u32) -> EndKind {
+    if link == END_B {
+        EndKind::Boundary
+    } else {
+        EndKind::Inside
+    }
 }
 
 /// Piece `2 s + side` is segment `s` in the parameter space of `segments[s].triangles[side]`.
@@ -166,83 +172,92 @@ struct Chain {
     turns: Vec<(usize, u32)>,
 }
 
-/// Links every piece end. Returns `[Link; 2]` per piece, indexed by segment end, and per piece
-/// end the edge of the piece's own triangle the path passes across there ([`NONE`] if none).
+/// Links every piece end: `links[piece][k]` is `2 * next + entry`, where the path leaving
+/// `piece` through its end `k` continues into piece `next` entering at its end `entry`, or
+/// [`END_B`] / [`END_I`] where the path ends. Also returns, per piece end, the edge of the
+/// piece's own triangle the path passes across there ([`NONE`] if none).
+///
+/// Built crossing by crossing: a crossing of edge `e` (triangles `x`, `y`) through triangle `t`
+/// ends the segments `{x, t}` and `{y, t}`; their pieces in `x` and `y` continue into each other
+/// across `e`, and their pieces in `t` continue into each other inside `t`. On a boundary edge
+/// (no `y`) the piece in `x` ends with `B` and the piece in `t` with `I`. Piece indices must stay
+/// below `2^31` (the links pack the entry end into the low bit).
 #[allow(clippy::type_complexity)]
 fn link_pieces(
     mesh: &AnalysisMesh,
     crossings: &[Crossing],
     segs: &Segments,
-) -> Result<(Vec<[Link; 2]>, Vec<[u32; 2]>), Inconsistency> {
+) -> Result<(Vec<[u32; 2]>, Vec<[u32; 2]>), Inconsistency> {
     let topo = &mesh.topology;
-    let n = segs.segments.len() * 2;
-    let mut links = vec![[Link::Terminal(EndKind::Inside); 2]; n];
+    let segments = &segs.segments;
+    let n = segments.len() * 2;
+    let mut links = vec![[END_I; 2]; n];
     let mut across = vec![[NONE; 2]; n];
-    for (s, seg) in segs.segments.iter().enumerate() {
-        for side in 0..2 {
-            let piece = (2 * s + side) as u32;
-            let (tri, other) = (seg.triangles[side], seg.triangles[1 - side]);
-            for k in 0..2 {
-                links[piece as usize][k] = match seg.ends[k] {
-                    End::LoopVertex(_) => Link::Piece {
-                        piece: partner(piece),
-                        end: k as u8,
-                    },
-                    End::Crossing(c) => {
-                        let cr = crossings[c as usize];
-                        // Which triangle the path continues in, and the one it continues against.
-                        let (next_tri, against) = if cr.triangle == other {
-                            across[piece as usize][k] = cr.edge;
-                            (topo.other_triangle(cr.edge, tri), other)
-                        } else {
-                            (tri, topo.other_triangle(cr.edge, other))
-                        };
-                        if next_tri == NONE || against == NONE {
-                            Link::Terminal(if next_tri == NONE {
-                                EndKind::Boundary
-                            } else {
-                                EndKind::Inside
-                            })
-                        } else {
-                            let oc = segs.of_crossing[c as usize];
-                            let ns = if oc[0] == s as u32 { oc[1] } else { oc[0] };
-                            if ns == NONE {
-                                return Err(Inconsistency(
-                                    tri,
-                                    other,
-                                    "crossing with one segment on an interior edge".into(),
-                                ));
-                            }
-                            let nseg = &segs.segments[ns as usize];
-                            let nside = nseg.triangles.iter().position(|&t| t == next_tri);
-                            let nend = nseg
-                                .ends
-                                .iter()
-                                .position(|e| matches!(e, End::Crossing(x) if *x == c));
-                            match (nside, nend, nseg.triangles.contains(&against)) {
-                                (Some(ns_side), Some(e), true) => Link::Piece {
-                                    piece: ns * 2 + ns_side as u32,
-                                    end: e as u8,
-                                },
-                                _ => {
-                                    return Err(Inconsistency(
-                                        tri,
-                                        other,
-                                        "crossing continues into an unexpected segment".into(),
-                                    ))
-                                }
-                            }
-                        }
-                    }
-                };
+    // At a loop vertex the path turns back into the other piece of its segment.
+    for (s, seg) in segments.iter().enumerate() {
+        for (k, end) in seg.ends.iter().enumerate() {
+            if let End::LoopVertex(_) = end {
+                let p = 2 * s;
+                links[p][k] = 2 * (p as u32 + 1) + k as u32;
+                links[p + 1][k] = 2 * p as u32 + k as u32;
             }
         }
+    }
+    // The end of segment `s` at crossing `c` and the side of `s` in triangle `t`.
+    let place = |s: u32, c: u32, t: u32| -> Option<(usize, usize)> {
+        let seg = segments.get(s as usize)?;
+        let k = seg.ends.iter().position(|e| *e == End::Crossing(c))?;
+        let side = seg.triangles.iter().position(|&x| x == t)?;
+        Some((k, side))
+    };
+    for (c, cr) in crossings.iter().enumerate() {
+        let c = c as u32;
+        let [sa, sb] = segs.of_crossing[c as usize];
+        let t = cr.triangle;
+        let unexpected = |s: u32| {
+            let tri = segments.get(s as usize).map_or(t, |g| g.triangles[0]);
+            Inconsistency(
+                tri,
+                t,
+                "crossing continues into an unexpected segment".into(),
+            )
+        };
+        let (ka, side_a) = place(sa, c, t).ok_or_else(|| unexpected(sa))?;
+        let pa_t = 2 * sa as usize + side_a;
+        let pa_e = pa_t ^ 1;
+        let x = segments[sa as usize].triangles[1 - side_a];
+        let y = topo.other_triangle(cr.edge, x);
+        across[pa_e][ka] = cr.edge;
+        if y == NONE {
+            links[pa_e][ka] = END_B;
+            links[pa_t][ka] = END_I;
+            continue;
+        }
+        if sb == NONE {
+            return Err(Inconsistency(
+                x,
+                t,
+                "crossing with one segment on an interior edge".into(),
+            ));
+        }
+        let (kb, side_b) = place(sb, c, t).ok_or_else(|| unexpected(sb))?;
+        if segments[sb as usize].triangles[1 - side_b] != y {
+            return Err(unexpected(sb));
+        }
+        let pb_t = 2 * sb as usize + side_b;
+        let pb_e = pb_t ^ 1;
+        across[pb_e][kb] = cr.edge;
+        let to = |p: usize, k: usize| (2 * p + k) as u32;
+        links[pa_e][ka] = to(pb_e, kb);
+        links[pb_e][kb] = to(pa_e, ka);
+        links[pa_t][ka] = to(pb_t, kb);
+        links[pb_t][kb] = to(pa_t, ka);
     }
     Ok((links, across))
 }
 
 /// The chains and cycles of linked pieces, with all their steps in one list.
-fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8)>) {
+fn walk_chains(links: &[[u32; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8)>) {
     let n = links.len();
     let mut all_steps: Vec<(u32, u8)> = Vec::with_capacity(n);
     let mut visited = vec![false; n];
@@ -265,42 +280,31 @@ fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u
         loop {
             visited[p as usize] = true;
             all.push((p, e));
-            let exit = 1 - e;
-            match links[p as usize][exit as usize] {
-                Link::Terminal(kind) => {
-                    return Chain {
-                        steps: first..all.len(),
-                        closed: false,
-                        ends: Some([EndKind::Inside, kind]),
-                        turns,
-                    }
-                }
-                Link::Piece { piece, end } => {
-                    if piece == partner(p) {
-                        turns.push((all.len() - 1 - first, loop_vertex_of(p)));
-                    }
-                    if piece == start && end == entry {
-                        return Chain {
-                            steps: first..all.len(),
-                            closed: true,
-                            ends: None,
-                            turns,
-                        };
-                    }
-                    if visited[piece as usize] {
-                        // Cannot happen for consistent links (every link is mutual); stop
-                        // rather than loop.
-                        return Chain {
-                            steps: first..all.len(),
-                            closed: true,
-                            ends: None,
-                            turns,
-                        };
-                    }
-                    p = piece;
-                    e = end;
-                }
+            let link = links[p as usize][1 - e as usize];
+            if link >= END_I {
+                return Chain {
+                    steps: first..all.len(),
+                    closed: false,
+                    ends: Some([EndKind::Inside, end_kind(link)]),
+                    turns,
+                };
             }
+            let (piece, end) = (link >> 1, (link & 1) as u8);
+            if piece == partner(p) {
+                turns.push((all.len() - 1 - first, loop_vertex_of(p)));
+            }
+            // Back at the start, or (cannot happen for consistent, mutual links) at a visited
+            // piece: stop rather than loop.
+            if (piece == start && end == entry) || visited[piece as usize] {
+                return Chain {
+                    steps: first..all.len(),
+                    closed: true,
+                    ends: None,
+                    turns,
+                };
+            }
+            p = piece;
+            e = end;
         }
     };
     for p in 0..n as u32 {
@@ -308,10 +312,11 @@ fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u
             if visited[p as usize] {
                 break;
             }
-            if let Link::Terminal(first) = links[p as usize][k as usize] {
+            let link = links[p as usize][k as usize];
+            if link >= END_I {
                 let mut ch = walk(p, k, &mut visited, &mut all_steps);
                 if let Some(ends) = ch.ends.as_mut() {
-                    ends[0] = first;
+                    ends[0] = end_kind(link);
                 }
                 chains.push(ch);
             }
@@ -327,14 +332,13 @@ fn walk_chains(links: &[[Link; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u
 
 /// The edges crossed an odd number of times between the pieces of `steps`; when the sub-path
 /// starts or ends with a `B` end, that boundary edge counts too. `across` is per piece end the
-/// edge passed across there (from [`link_pieces`]); `edges` is scratch space.
+/// edge passed across there (from [`link_pieces`]).
 fn cut_of(
     across: &[[u32; 2]],
     steps: &[(u32, u8)],
     (closed, b_start, b_end): (bool, bool, bool),
-    edges: &mut Vec<u32>,
+    odd: &mut OddEdges,
 ) -> Vec<u32> {
-    edges.clear();
     let count = steps.len();
     let transitions = if closed {
         count
@@ -344,7 +348,7 @@ fn cut_of(
     let mut push = |p: u32, exit: u8| {
         let e = across[p as usize][exit as usize];
         if e != NONE {
-            edges.push(e);
+            odd.toggle(e);
         }
     };
     for &(p, e) in &steps[..transitions] {
@@ -358,21 +362,62 @@ fn cut_of(
         let (p, e) = steps[count - 1];
         push(p, 1 - e);
     }
-    edges.sort_unstable();
-    // Keep edges crossed an odd number of times.
-    let mut out = Vec::with_capacity(edges.len());
-    let mut i = 0;
-    while i < edges.len() {
-        let mut j = i;
-        while j < edges.len() && edges[j] == edges[i] {
-            j += 1;
+    odd.take()
+}
+
+/// The edges seen an odd number of times, sorted, without sorting the sequence: a parity bit
+/// per edge, read back word by word over the span of the edges seen when that span is short
+/// (a path's edges are close in index), else from the list of edges seen, sorted.
+struct OddEdges {
+    /// Parity bit of each edge; all zero between uses.
+    parity: Vec<u64>,
+    /// Edges seen since the last [`OddEdges::take`], with repetitions.
+    seen: Vec<u32>,
+}
+
+impl OddEdges {
+    fn new(num_edges: usize) -> Self {
+        OddEdges {
+            parity: vec![0; num_edges / 64 + 1],
+            seen: Vec::new(),
         }
-        if (j - i) % 2 == 1 {
-            out.push(edges[i]);
-        }
-        i = j;
     }
-    out
+
+    #[inline]
+    fn toggle(&mut self, e: u32) {
+        self.parity[(e / 64) as usize] ^= 1 << (e % 64);
+        self.seen.push(e);
+    }
+
+    /// The edges toggled an odd number of times since the last call, ascending; clears.
+    fn take(&mut self) -> Vec<u32> {
+        let (Some(&lo), Some(&hi)) = (self.seen.iter().min(), self.seen.iter().max()) else {
+            return Vec::new();
+        };
+        let (w0, w1) = ((lo / 64) as usize, (hi / 64) as usize);
+        let mut out = Vec::with_capacity(self.seen.len());
+        if w1 - w0 < 4 * self.seen.len() + 8 {
+            for (w, word) in self.parity[w0..=w1].iter_mut().enumerate() {
+                let mut x = std::mem::take(word);
+                while x != 0 {
+                    out.push(((w0 + w) * 64) as u32 + x.trailing_zeros());
+                    x &= x - 1;
+                }
+            }
+        } else {
+            for &e in &self.seen {
+                let word = &mut self.parity[(e / 64) as usize];
+                let bit = 1u64 << (e % 64);
+                if *word & bit != 0 {
+                    *word &= !bit;
+                    out.push(e);
+                }
+            }
+            out.sort_unstable();
+        }
+        self.seen.clear();
+        out
+    }
 }
 
 /// Paths and tanglements of the given segments.
@@ -384,7 +429,7 @@ pub fn trace_paths(
     let (links, across) = link_pieces(mesh, crossings, segs)?;
     let (chains, all_steps) = walk_chains(&links, segs);
     let steps_of = |c: &Chain| &all_steps[c.steps.clone()];
-    let mut scratch = Vec::new();
+    let mut scratch = OddEdges::new(mesh.topology.num_edges());
     let object_of_piece = |p: u32| mesh.object_of_triangle[piece_triangle(segs, p) as usize];
 
     // Classify chains; BLI chains are grouped by loop vertex to find CROSS pairs.
@@ -653,5 +698,40 @@ fn tanglement_kind(p: &Path, q: Option<&Path>) -> String {
             format!("{}{}", names[0], names[1])
         }
         (a, None) => a.name().into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// The parity bits give the edges seen an odd number of times, sorted (the oracle:
+        /// count every edge), for clustered (word scan) and spread-out (sorted list) edges, and
+        /// leave the bits clear for the next use.
+        #[test]
+        fn odd_edges_match_counting(
+            batches in proptest::collection::vec(
+                proptest::collection::vec((0u32..40, 0u32..3), 0..60), 1..5),
+            spread in prop_oneof![Just(1u32), Just(997u32)],
+        ) {
+            let num_edges = 40 * spread as usize + 1;
+            let mut odd = OddEdges::new(num_edges);
+            for batch in &batches {
+                let mut count = std::collections::BTreeMap::<u32, usize>::new();
+                for &(e, reps) in batch {
+                    let e = e * spread;
+                    for _ in 0..=reps {
+                        odd.toggle(e);
+                        *count.entry(e).or_default() += 1;
+                    }
+                }
+                let brute: Vec<u32> =
+                    count.into_iter().filter(|&(_, c)| c % 2 == 1).map(|(e, _)| e).collect();
+                prop_assert_eq!(odd.take(), brute);
+                prop_assert!(odd.parity.iter().all(|&w| w == 0));
+            }
+        }
     }
 }

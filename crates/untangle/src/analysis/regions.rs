@@ -20,6 +20,8 @@ pub struct RegionFinder<'a> {
     roi: Vec<u32>,
     roi_stamp: u32,
     dist: Vec<f64>,
+    /// The two flood queues (kept for their capacity).
+    queues: [Vec<u32>; 2],
 }
 
 /// Outcome for one path.
@@ -45,6 +47,7 @@ impl<'a> RegionFinder<'a> {
             roi: vec![0; mesh.num_vertices()],
             roi_stamp: 0,
             dist: vec![f64::INFINITY; mesh.num_vertices()],
+            queues: [Vec::new(), Vec::new()],
         }
     }
 
@@ -123,7 +126,6 @@ impl<'a> RegionFinder<'a> {
         if path.cut_edges.is_empty() {
             return Region::None;
         }
-        let in_roi = |roi_arr: &[u32], v: u32| roi.is_none_or(|r| roi_arr[v as usize] == r);
         let topo = &self.mesh.topology;
         self.stamp += 1;
         let st = self.stamp;
@@ -145,7 +147,21 @@ impl<'a> RegionFinder<'a> {
         let Some(seed) = seed else {
             return Region::None;
         };
-        let mut queues: [Vec<u32>; 2] = [vec![seed[0]], vec![seed[1]]];
+        let mut queues = std::mem::take(&mut self.queues);
+        for s in 0..2 {
+            queues[s].clear();
+            queues[s].push(seed[s]);
+        }
+        let region = self.lock_step(&mut queues, st, roi);
+        self.queues = queues;
+        region
+    }
+
+    /// The lock-step flood of [`RegionFinder::flood`] from the seeds in `queues`.
+    fn lock_step(&mut self, queues: &mut [Vec<u32>; 2], st: u32, roi: Option<u32>) -> Region {
+        let in_roi = |roi_arr: &[u32], v: u32| roi.is_none_or(|r| roi_arr[v as usize] == r);
+        let topo = &self.mesh.topology;
+        let seed = [queues[0][0], queues[1][0]];
         let mut heads = [0usize; 2];
         for s in 0..2 {
             self.vertex_stamp[seed[s] as usize] = st;

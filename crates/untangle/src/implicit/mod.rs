@@ -29,7 +29,8 @@
 //!   (T-shirt and dress) or fields with `|∇f| ≈ 1.1` came out 2–10 % too far apart. By default
 //!   every gap between neighbouring active layers is scaled by the tilt of the gradients of the
 //!   layers that merge there (the blocks of a local isotonic-regression model,
-//!   [`thickness::contact_blocks`]) and expressed in each field's gradient-norm units
+//!   [`thickness::contact_blocks`], other layers blended in continuously by their fitted
+//!   distance) and expressed in each field's gradient-norm units
 //!   ([`thickness::scaled_offsets`]): exact to first order, same order of the layers;
 //!   `ProjectionParams::scaled_offsets = false` is eq. 13 as written.
 //! - Vertices keep their own iso-value `ε_v` away from contact; in contact the target is the

@@ -41,7 +41,7 @@ fn certain_orient(a: &Vec3, b: &Vec3, c: &Vec3, d: &Vec3) -> i32 {
 /// sharing an edge never do (crossing rule); for one shared vertex, only the edge opposite it
 /// in either triangle can cross the other, which it cannot when both its ends are certainly
 /// on the same side of the other's plane.
-fn may_intersect(ta: [u32; 3], tb: [u32; 3], pos: &[Vec3]) -> bool {
+pub(crate) fn may_intersect(ta: [u32; 3], tb: [u32; 3], pos: &[Vec3]) -> bool {
     let shared = ta.iter().filter(|v| tb.contains(v)).count();
     if shared >= 2 {
         return false;

@@ -318,6 +318,35 @@ fn arcsim_five_layers_are_intersection_free() {
 }
 
 #[test]
+fn arcsim_nine_layers_are_intersection_free() {
+    // Fig. 9 analogue: body and eight garments (the outer four are scaled copies of the
+    // T-shirt and the jacket), every one crossing its neighbours. Before the repair kept the
+    // "does not move in" mark of a triangle for good, 118 + 22 pairs were left here.
+    let Some(shared) = shared_data() else { return };
+    let names = [
+        "pants3",
+        "dress3",
+        "tshirt",
+        "jacket",
+        "tshirt*1.05",
+        "jacket*1.04",
+        "tshirt*1.1",
+        "jacket*1.08",
+    ];
+    let (body, garments, v0) = tangled_outfit(&shared, &names, 1);
+    assert!(v0.between_layers > 1000 && v0.with_body > 100, "{v0:?}");
+    let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
+    let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
+    let v = verify_outfit(&body, &garments, &out.positions);
+    eprintln!(
+        "arcsim 9 layers: before {v0:?}, after {v:?}, {:?}",
+        out.pair_repair
+    );
+    assert!(v.is_clean(), "{v:?}");
+    assert_eq!(out.pair_repair.remaining, 0);
+}
+
+#[test]
 fn arcsim_pants_and_tshirt_over_the_body() {
     let Some(shared) = shared_data() else { return };
     let (body, garments, v0) = tangled_outfit(&shared, &["pants3", "tshirt"], 2);

@@ -219,7 +219,7 @@ impl BsrMatrix {
         self.pairs.mul_add(x, y);
     }
 
-    /// `y = A x`, then `post(first_row, rows)` on each chunk of [`CHUNK`] rows of `y`; returns
+    /// `y = A x`, then `post(first_row, rows)` on each chunk of `CHUNK` (512) rows of `y`; returns
     /// the sum of the `post` results in chunk order (deterministic for any thread count).
     /// Without pair couplings the product and `post` run in one parallel pass (one fork-join
     /// per CG iteration fewer, and `y` is still in cache for `post`); the result is the same as

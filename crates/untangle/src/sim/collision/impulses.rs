@@ -9,6 +9,7 @@
 
 use rayon::prelude::*;
 
+use super::proximity::StartState;
 use super::{closest, impulse, Pair, Scene};
 use crate::geom::ccd::{edge_edge_impact, vertex_triangle_impact, CcdOptions};
 use crate::geom::Vec3;
@@ -42,8 +43,9 @@ pub fn ccd(scene: &Scene, v: &[Vec3], p: Pair, eps: f64) -> Option<f64> {
     let nodes = scene.nodes(p);
     let x0 = scene.positions(v, &nodes, 0.0);
     let x1 = scene.positions(v, &nodes, 1.0);
-    let d0 = closest(&x0, p.is_vertex_triangle()).distance;
-    ccd_with_start_distance(&x0, &x1, p.is_vertex_triangle(), eps, d0)
+    let vt = p.is_vertex_triangle();
+    let d0 = closest(&x0, vt).distance;
+    ccd_with_start_distance(&x0, &x1, vt, eps, d0, relative_reach(&x0, &x1, vt))
 }
 
 /// The largest displacement of a node of one primitive relative to a node of the other over
@@ -64,14 +66,16 @@ fn relative_reach(x0: &[Vec3; 4], x1: &[Vec3; 4], vt: bool) -> f64 {
     }
 }
 
+/// Conservative advancement from the start distance `d0` with the Lipschitz bound `reach`
+/// ([`relative_reach`]), then the inclusion-based kernel on the rest of the step.
 fn ccd_with_start_distance(
     x0: &[Vec3; 4],
     x1: &[Vec3; 4],
     vt: bool,
     eps: f64,
     d0: f64,
+    reach: f64,
 ) -> Option<f64> {
-    let reach = relative_reach(x0, x1, vt);
     let scale = x0.iter().chain(x1).fold(0.0f64, |m, p| m.max(p.amax()));
     let slack = eps * 1e-9 + 1e-12 * scale;
     // Conservative advancement (Mirtich 1996): no contact can happen before
@@ -116,26 +120,49 @@ pub fn detect_pair(
     p: Pair,
     policy: &dyn ContactPolicy,
 ) -> Option<Collision> {
-    let eps_c = scene.thickness(p, policy)? * scene.ccd_ratio;
+    let thickness = scene.thickness(p, policy)?;
     let nodes = scene.nodes(p);
     let x0 = scene.positions(v, &nodes, 0.0);
-    let x1 = scene.positions(v, &nodes, 1.0);
+    detect_screened(scene, v, p, thickness, &nodes, &x0, None)
+}
+
+/// [`detect_pair`] for a pair whose policy `thickness`, nodes and start positions `x0` are
+/// known, and possibly what screening learnt about its start state (lower distance bound,
+/// start distance: neither depends on the velocities).
+pub fn detect_screened(
+    scene: &Scene,
+    v: &[Vec3],
+    p: Pair,
+    thickness: f64,
+    nodes: &[u32; 4],
+    x0: &[Vec3; 4],
+    start: Option<StartState>,
+) -> Option<Collision> {
+    let eps_c = thickness * scene.ccd_ratio;
+    let x1 = scene.positions(v, nodes, 1.0);
     let vt = p.is_vertex_triangle();
-    // The candidate boxes were inflated by the largest thickness of the policy; most pairs are
-    // farther apart than their own CCD thickness over the whole step, which the swept boxes of
-    // the two primitives already show.
-    if super::swept_apart(&x0, &x1, vt, eps_c) {
-        return None;
-    }
+    let start = start.unwrap_or_else(|| StartState {
+        gap: super::axis_gap(x0, vt),
+        scale: super::coordinate_scale(x0),
+        distance: None,
+    });
     // The distance shrinks by at most the largest relative displacement of the pair's nodes
     // over the step (see `ccd_with_start_distance`): a start gap beyond it and eps_c settles
-    // the pair without a closest-point computation.
-    if super::sphere_apart(&x0, vt, eps_c + relative_reach(&x0, &x1, vt)) {
+    // the pair without a closest-point computation (conservative advancement would settle it
+    // in its first few steps).
+    let reach = relative_reach(x0, &x1, vt);
+    if super::gap_exceeds(start.gap, start.scale, eps_c + reach) {
         return None;
     }
-    let d0 = closest(&x0, vt).distance;
+    // The candidate boxes were inflated by the largest thickness of the policy; pairs farther
+    // apart than their own CCD thickness over the whole step are shown so by the swept boxes
+    // of the two primitives.
+    if super::swept_apart(x0, &x1, vt, eps_c) {
+        return None;
+    }
+    let d0 = start.distance.unwrap_or_else(|| closest(x0, vt).distance);
     let eps = eps_c.min(0.5 * d0);
-    let toi = ccd_with_start_distance(&x0, &x1, vt, eps, d0)?;
+    let toi = ccd_with_start_distance(x0, &x1, vt, eps, d0, reach)?;
     Some(Collision {
         pair: p,
         toi,

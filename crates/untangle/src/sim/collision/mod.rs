@@ -18,6 +18,7 @@ pub mod broad;
 pub mod impact_zones;
 pub mod impulses;
 pub mod proximity;
+pub mod screen;
 
 use super::obstacle::Obstacles;
 use super::policy::{Contact, ContactPolicy, ObstaclePair};
@@ -216,6 +217,29 @@ impl Scene<'_> {
     }
 }
 
+/// A cloth-only scene with `h = 0.02`, friction 0.1 and `ccd_ratio = 0.5` (unit tests).
+#[cfg(test)]
+pub(crate) fn obstacle_free_scene_for_tests<'a>(
+    x0: &'a [Vec3],
+    triangles: &'a [[u32; 3]],
+    edges: &'a [[u32; 2]],
+    hinge: &'a [[u32; 3]],
+    obstacles: &'a Obstacles,
+    inv_mass: &'a [f64],
+) -> Scene<'a> {
+    Scene {
+        x0,
+        h: 0.02,
+        triangles,
+        edges,
+        hinge,
+        obstacles,
+        inv_mass,
+        friction: 0.1,
+        ccd_ratio: 0.5,
+    }
+}
+
 /// Whether the two primitives of a pair (nodes `[p, a, b, c]` when `vt`, else two edges), moving
 /// linearly from `x0` to `x1`, stay more than `d` apart during the whole step, as shown by their
 /// swept axis-aligned boxes (a gap along one axis bounds the distance from below). Rounding is
@@ -270,12 +294,84 @@ pub fn sphere_gap(x: &[Vec3; 4], vt: bool) -> f64 {
     }
 }
 
-/// Whether [`sphere_gap`] shows the pair farther apart than `d` (with a relative slack for
+/// A lower bound of the distance between the two primitives of a pair (nodes `[p, a, b, c]`
+/// when `vt`, else two edges) at positions `x`, from two separating axes: the projections of
+/// the primitives onto the axis through their centres (vertex and triangle centroid, or the
+/// edges' midpoints) and onto the normal of the triangle's plane (or the common normal of the
+/// edges' lines) cannot be closer than the primitives. At least [`sphere_gap`] (a projection is
+/// never longer than the segment it projects), and much tighter for neighbouring primitives
+/// side by side on one smooth sheet, the bulk of the swept-box candidates: two opposite edges
+/// of a quad have a sphere gap of zero but an axis gap of the quad's width.
+#[inline]
+pub fn axis_gap(x: &[Vec3; 4], vt: bool) -> f64 {
+    centre_gap(x, vt).max(normal_gap(x, vt))
+}
+
+/// The separating-axis bound of [`axis_gap`] along the axis through the primitives' centres
+/// alone (the one that separates neighbours on a sheet).
+#[inline]
+pub fn centre_gap(x: &[Vec3; 4], vt: bool) -> f64 {
+    if vt {
+        separation_along(x, 1, &(x[0] - (x[1] + x[2] + x[3]) / 3.0))
+    } else {
+        separation_along(x, 2, &((x[2] + x[3] - x[0] - x[1]) * 0.5))
+    }
+}
+
+/// The separating-axis bound of [`axis_gap`] along the triangle's normal (or the edges'
+/// common normal) alone (the one that separates stacked layers).
+#[inline]
+pub fn normal_gap(x: &[Vec3; 4], vt: bool) -> f64 {
+    if vt {
+        separation_along(x, 1, &(x[2] - x[1]).cross(&(x[3] - x[1])))
+    } else {
+        separation_along(x, 2, &(x[1] - x[0]).cross(&(x[3] - x[2])))
+    }
+}
+
+/// The gap between the projections onto the direction `u` of nodes `x[..split]` and
+/// `x[split..]` (a lower bound of the distance of their convex hulls for any `u`, computed for
+/// the `u` actually given, so rounding in `u` does not matter); `-inf` for `u = 0`.
+#[inline]
+fn separation_along(x: &[Vec3; 4], split: usize, u: &Vec3) -> f64 {
+    let l = u.norm();
+    if l == 0.0 || !l.is_finite() {
+        return f64::NEG_INFINITY;
+    }
+    let (mut lo_a, mut hi_a) = (f64::INFINITY, f64::NEG_INFINITY);
+    let (mut lo_b, mut hi_b) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (k, p) in x.iter().enumerate() {
+        let s = (p - x[0]).dot(u);
+        if k < split {
+            lo_a = lo_a.min(s);
+            hi_a = hi_a.max(s);
+        } else {
+            lo_b = lo_b.min(s);
+            hi_b = hi_b.max(s);
+        }
+    }
+    (lo_b - hi_a).max(lo_a - hi_b) / l
+}
+
+/// Largest absolute coordinate of the four nodes (the scale of rounding errors).
+#[inline]
+pub fn coordinate_scale(x: &[Vec3; 4]) -> f64 {
+    x.iter().fold(0.0f64, |m, p| m.max(p.amax()))
+}
+
+/// Whether a lower distance bound `gap` ([`axis_gap`]) of nodes with [`coordinate_scale`]
+/// `scale` shows the pair farther apart than `d`, with a relative slack for rounding (so `false`
+/// only means "maybe closer").
+#[inline]
+pub fn gap_exceeds(gap: f64, scale: f64, d: f64) -> bool {
+    gap > d * (1.0 + 1e-9) + 1e-9 * scale
+}
+
+/// Whether [`axis_gap`] shows the pair farther apart than `d` (with a relative slack for
 /// rounding, so `false` only means "maybe closer").
 #[inline]
-pub fn sphere_apart(x: &[Vec3; 4], vt: bool, d: f64) -> bool {
-    let scale = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
-    sphere_gap(x, vt) > d * (1.0 + 1e-9) + 1e-9 * scale
+pub fn gap_apart(x: &[Vec3; 4], vt: bool, d: f64) -> bool {
+    gap_exceeds(axis_gap(x, vt), coordinate_scale(x), d)
 }
 
 /// Closest-point geometry of a pair at one instant.
@@ -451,9 +547,22 @@ pub fn handle(
     let t = Instant::now();
     let n = scene.x0.len();
     let v_start = v.to_vec();
+    // Proximity's verdicts and the first CCD pass's tests at the start velocities, in one pass.
+    let screened = screen::screen(
+        scene,
+        v,
+        &cands,
+        policy,
+        settings.proximity.then_some(settings.contacts_within_reach),
+    );
     if settings.proximity {
-        let (applied, resting) =
-            proximity::repel(scene, v, &cands, policy, settings.contacts_within_reach);
+        let (applied, resting) = proximity::repel_screened(
+            scene,
+            v,
+            screened.near,
+            policy,
+            settings.contacts_within_reach,
+        );
         rep.proximity_impulses = applied;
         rep.resting = resting;
     }
@@ -461,10 +570,12 @@ pub fn handle(
 
     // Only pairs with a vertex whose velocity changed since the last CCD pass, or that
     // collided in it, can collide now; everything else was already found free. The first pass
-    // tests every candidate: those of the first broad phase whose vertices proximity left
-    // alone (same boxes), and the pairs of the vertices it changed, queried afresh.
+    // reuses the screening's results for the candidates whose vertices proximity left alone
+    // (same boxes, same velocities), and tests the pairs of the vertices it changed, queried
+    // afresh.
     let mut changed: Vec<bool> = (0..n).map(|i| v[i] != v_start[i]).collect();
-    let mut first = Some(cands);
+    let mut first = Some(screened.collisions);
+    drop(cands);
     let mut previous: Vec<Pair> = Vec::new();
     // Few changed vertices: query from them (see `BroadPhase::candidates_of_changed`) and add
     // the previous pass's colliding pairs that none of them touches; many: filter everything.
@@ -490,45 +601,72 @@ pub fn handle(
             out.dedup();
             out
         };
-    // The first CCD pass (impulse or zone pass) tests every candidate.
-    let pass_candidates = |broad: &broad::BroadPhase,
+    // The CCD collisions of one pass (impulse or zone pass), in the order of its candidates;
+    // `skip` leaves out pairs inside one rigid impact zone. The broad-phase part is timed into
+    // `broad`.
+    let pass_collisions = |broad: &broad::BroadPhase,
                            v: &[Vec3],
                            changed: &[bool],
                            previous: &[Pair],
-                           first: &mut Option<Vec<Pair>>|
-     -> Vec<Pair> {
+                           first: &mut Option<Vec<impulses::Collision>>,
+                           skip: &(dyn Fn(&[u32; 4]) -> bool + Sync),
+                           broad_ms: &mut f64|
+     -> Vec<impulses::Collision> {
+        let tb = Instant::now();
         match first.take() {
-            Some(all) if 4 * changed.iter().filter(|&&c| c).count() <= n => {
+            Some(screened) if 4 * changed.iter().filter(|&&c| c).count() <= n => {
                 let untouched = |p: &Pair| {
                     scene
                         .nodes(*p)
                         .iter()
                         .all(|&k| k & OBSTACLE != 0 || !changed[k as usize])
                 };
-                let mut c = broad.candidates_of_changed(scene, v, margin, changed);
-                c.extend(all.into_iter().filter(untouched));
-                c.sort_unstable();
-                c.dedup();
-                c
+                let fresh = broad.candidates_of_changed(scene, v, margin, changed);
+                *broad_ms += ms(tb);
+                let mut cols = impulses::detect(scene, v, &fresh, policy, skip);
+                cols.extend(
+                    screened
+                        .into_iter()
+                        .filter(|c| untouched(&c.pair) && !skip(&scene.nodes(c.pair))),
+                );
+                cols.sort_unstable_by_key(|c| c.pair);
+                cols
             }
-            Some(_) => broad.candidates(scene, v, margin),
-            None => select(broad, v, changed, previous),
+            Some(_) => {
+                let cands = broad.candidates(scene, v, margin);
+                *broad_ms += ms(tb);
+                impulses::detect(scene, v, &cands, policy, skip)
+            }
+            None => {
+                let cands = select(broad, v, changed, previous);
+                *broad_ms += ms(tb);
+                impulses::detect(scene, v, &cands, policy, skip)
+            }
         }
     };
     let (mut fewest, mut no_progress) = (usize::MAX, 0);
     for it in 0..settings.max_impulse_iterations {
         let t = Instant::now();
         broad.update_changed(scene, v, margin, &changed);
-        let cands = pass_candidates(broad, v, &changed, &previous, &mut first);
         rep.timing.broad += ms(t);
         let t = Instant::now();
-        let cols = impulses::detect(scene, v, &cands, policy, &no_skip);
+        let mut broad_ms = 0.0;
+        let cols = pass_collisions(
+            broad,
+            v,
+            &changed,
+            &previous,
+            &mut first,
+            &no_skip,
+            &mut broad_ms,
+        );
+        rep.timing.broad += broad_ms;
         rep.iterations += 1;
         if it == 0 {
             rep.first_pass_collisions = cols.len();
         }
         if cols.is_empty() {
-            rep.timing.impulses += ms(t);
+            rep.timing.impulses += ms(t) - broad_ms;
             return rep;
         }
         let before = v.to_vec();
@@ -538,7 +676,7 @@ pub fn handle(
         }
         previous = cols.iter().map(|c| c.pair).collect();
         previous.sort_unstable();
-        rep.timing.impulses += ms(t);
+        rep.timing.impulses += ms(t) - broad_ms;
         // Impulses that keep chasing the same few pairs (a vertex trapped in a closing fold, a
         // tangled spot the policy still guards) do not converge: hand over to impact zones.
         if cols.len() < fewest {
@@ -559,10 +697,19 @@ pub fn handle(
     for _ in 0..settings.max_zone_iterations {
         let tb = Instant::now();
         broad.update_changed(scene, v, margin, &changed);
-        let cands = pass_candidates(broad, v, &changed, &previous, &mut first);
         rep.timing.broad += ms(tb);
         let skip = |nodes: &[u32; 4]| zones.same_zone(nodes);
-        let cols = impulses::detect(scene, v, &cands, policy, &skip);
+        let mut broad_ms = 0.0;
+        let cols = pass_collisions(
+            broad,
+            v,
+            &changed,
+            &previous,
+            &mut first,
+            &skip,
+            &mut broad_ms,
+        );
+        rep.timing.broad += broad_ms;
         rep.iterations += 1;
         rep.zone_iterations += 1;
         if cols.is_empty() {
@@ -719,14 +866,79 @@ mod tests {
             let d = closest(&x, vt).distance;
             let g = sphere_gap(&x, vt);
             assert!(g <= d + 1e-12, "case {case}: gap {g} > distance {d}");
+            let a = axis_gap(&x, vt);
+            assert!(a <= d + 1e-12, "case {case}: axis gap {a} > distance {d}");
+            assert!(a >= g - 1e-12, "case {case}: axis gap {a} < sphere gap {g}");
             if g > 0.5 * d {
                 tight += 1;
             }
-            if sphere_apart(&x, vt, 0.01) {
+            if gap_apart(&x, vt, 0.01) {
                 assert!(d > 0.01, "case {case}");
             }
         }
         assert!(tight > 5000, "{tight}");
+    }
+
+    mod axis_gap_props {
+        use super::super::{axis_gap, closest, coordinate_scale, gap_exceeds};
+        use crate::geom::Vec3;
+        use proptest::prelude::*;
+
+        fn v3(a: [f64; 3]) -> Vec3 {
+            Vec3::new(a[0], a[1], a[2])
+        }
+
+        proptest! {
+            #![proptest_config(ProptestConfig::with_cases(3000))]
+            /// Oracle for [`axis_gap`] on adversarial input (coplanar, parallel, degenerate
+            /// and far-offset primitives): never above the closest-point distance, and
+            /// `gap_exceeds` never claims a pair farther than it is.
+            #[test]
+            fn axis_gap_never_exceeds_the_distance(
+                vt in any::<bool>(),
+                x in prop::array::uniform4(prop::array::uniform3(-1.0f64..1.0)),
+                flat in 0usize..4,
+                offset in prop::array::uniform3(-100.0f64..100.0),
+                d in 0.0f64..0.5,
+            ) {
+                let o = v3(offset);
+                let mut x = x.map(|a| v3(a) + o);
+                match flat {
+                    // All four in one plane (neighbours on a flat sheet).
+                    1 => x.iter_mut().for_each(|p| p.z = o.z),
+                    // Parallel edges / a vertex on the triangle's edge line.
+                    2 => { let e = x[1] - x[0]; x[3] = x[2] + e * 0.7; }
+                    // A degenerate (collinear) triangle or zero-length edge.
+                    3 => { x[3] = x[1] + (x[2] - x[1]) * 0.3; x[1] = x[0] + (x[1] - x[0]) * 1e-12; }
+                    _ => {}
+                }
+                let dist = closest(&x, vt).distance;
+                let g = axis_gap(&x, vt);
+                prop_assert!(g <= dist + 1e-12 * (1.0 + o.amax()), "gap {} > distance {}", g, dist);
+                if gap_exceeds(g, coordinate_scale(&x), d) {
+                    prop_assert!(dist > d);
+                }
+            }
+        }
+
+        /// Not vacuous: on a flat grid, the axis gap of neighbouring primitives that are not
+        /// adjacent is most of their distance (the sphere gap of two opposite quad edges is 0).
+        #[test]
+        fn axis_gap_is_tight_for_neighbours_on_a_sheet() {
+            let q = |x: f64, y: f64| Vec3::new(x, y, 0.0);
+            // Opposite edges of a unit quad.
+            let ee = [q(0.0, 0.0), q(1.0, 0.0), q(0.0, 1.0), q(1.0, 1.0)];
+            assert!((axis_gap(&ee, false) - 1.0).abs() < 1e-12);
+            assert!(super::super::sphere_gap(&ee, false) <= 1e-12);
+            // A vertex one cell beyond a triangle's edge.
+            let vt = [q(0.5, 2.0), q(0.0, 0.0), q(1.0, 0.0), q(0.0, 1.0)];
+            let dist = closest(&vt, true).distance;
+            assert!(
+                axis_gap(&vt, true) > 0.6 * dist,
+                "{} vs {dist}",
+                axis_gap(&vt, true)
+            );
+        }
     }
 
     /// Oracle for [`swept_apart`]: whenever it says apart, the distance sampled along the step

@@ -4,9 +4,12 @@
 //! approaching normal velocity, and pairs already inside their thickness are pushed apart at a
 //! fraction of the overlap per step; Coulomb friction acts on the tangential relative velocity.
 //!
-//! The closest-point geometry at the start of the step is computed once per pair (in parallel);
-//! the impulses are then applied in a fixed pair order (Gauss-Seidel) for a few sweeps, so the
-//! result does not depend on the thread count.
+//! The closest-point geometry at the start of the step is computed once per pair (in parallel,
+//! by the shared screening pass, [`super::screen`]); the impulses are then applied in a fixed
+//! pair order (Gauss-Seidel) for a few sweeps, so the result does not depend on the thread
+//! count. Pairs that provably get no impulse while their nodes keep their start velocities
+//! ([`dormant`]) have their closest points computed only if an impulse changes one of those
+//! velocities: the same impulses, in the same order, as computing every pair at once.
 
 use rayon::prelude::*;
 
@@ -19,7 +22,8 @@ pub const PUSH_OUT: f64 = 0.25;
 /// Gauss-Seidel sweeps over the close pairs.
 pub const SWEEPS: usize = 4;
 
-struct Near {
+/// A pair proximity looks at: close, or within reach of the step's motion.
+pub struct Near {
     pair: Pair,
     nodes: [u32; 4],
     geom: Closest,
@@ -27,6 +31,224 @@ struct Near {
     mu: f64,
     active: bool,
     close: bool,
+}
+
+/// Proximity's verdict on one candidate pair at the velocities the step starts with
+/// ([`screen_pair`]).
+pub enum Verdict {
+    /// Neither close nor within reach: proximity ignores it.
+    Far,
+    /// Close or within reach: its closest-point geometry, in the Gauss-Seidel sweeps.
+    Near(Near),
+    /// Provably inert while its nodes keep their start velocities: not within twice its
+    /// thickness, and farther from it than the largest *relative* motion of its nodes over the
+    /// step, so its normal velocity cannot reach the impulse threshold (see [`dormant`]). The
+    /// closest points are computed, exactly as for any pair, only if an impulse of the sweeps
+    /// changes a node's velocity. Only without `within_reach`, where membership in the resting
+    /// contacts depends on closeness and impulses alone.
+    Dormant,
+}
+
+/// Whether, at positions `x` (the step's start) and velocities `v` of the nodes, a pair with
+/// thickness `eps` is provably farther than `2 eps` and cannot receive a proximity impulse. The
+/// relative normal velocity `sum_k w_k n . v_k` is, for closest-point weights (convex on each
+/// side), at most the largest speed of a node of one primitive relative to a node of the other,
+/// `rel`; an impulse needs it above `gap / h`, `gap` the distance minus `eps`. So a pair whose
+/// lower distance bound (swept boxes at rest, bounding spheres) exceeds
+/// `max(2 eps, eps + rel h)` (plus rounding slack) gets none.
+#[inline]
+pub fn dormant(x: &[Vec3; 4], vel: &[Vec3; 4], vt: bool, eps: f64, h: f64) -> bool {
+    let (gap, scale) = (super::axis_gap(x, vt), super::coordinate_scale(x));
+    dormant_given_gap(gap, scale, vel, vt, eps, h)
+}
+
+/// [`dormant`] with the pair's [`super::axis_gap`] and [`super::coordinate_scale`] given.
+#[inline]
+fn dormant_given_gap(gap: f64, scale: f64, vel: &[Vec3; 4], vt: bool, eps: f64, h: f64) -> bool {
+    super::gap_exceeds(
+        gap,
+        scale,
+        dormant_distance(eps, relative_speed(vel, vt), h),
+    )
+}
+
+/// The largest speed of a node of one primitive relative to a node of the other (nodes
+/// `[p, a, b, c]` when `vt`, else two edges), rounded up: a bound of the pair's relative
+/// normal velocity at any closest points, and `h` times it a bound of how much the distance
+/// can shrink over the step.
+#[inline]
+pub fn relative_speed(vel: &[Vec3; 4], vt: bool) -> f64 {
+    let split = if vt { 1 } else { 2 };
+    let mut rel = 0.0f64;
+    for i in 0..split {
+        for j in split..4 {
+            rel = rel.max((vel[i] - vel[j]).norm_squared());
+        }
+    }
+    let vmax = vel.iter().fold(0.0f64, |m, w| m.max(w.amax()));
+    rel.sqrt() * (1.0 + 1e-9) + 1e-9 * vmax
+}
+
+/// The distance beyond which a pair with thickness `eps` and [`relative_speed`] `rel` is
+/// dormant (see [`dormant`]).
+#[inline]
+fn dormant_distance(eps: f64, rel: f64, h: f64) -> f64 {
+    (2.0 * eps).max(eps + rel * h * (1.0 + 1e-9))
+}
+
+/// What screening learnt about a pair's start state, for the first CCD pass: its
+/// [`super::axis_gap`] (or another lower distance bound) and [`super::coordinate_scale`] at the
+/// start, and its start distance if the closest points were computed.
+#[derive(Clone, Copy, Debug)]
+pub struct StartState {
+    /// Lower distance bound at the start.
+    pub gap: f64,
+    /// Coordinate scale at the start.
+    pub scale: f64,
+    /// Start distance, when known.
+    pub distance: Option<f64>,
+}
+
+/// Proximity's verdict on candidate `p` (nodes `nodes`, start positions `x`, thickness `eps`)
+/// at the velocities `v` the step starts with, what it learnt about the start state (shared
+/// with the first CCD pass), and whether the start gap already shows that CCD with thickness
+/// `ccd_eps` finds nothing (the gap exceeds `ccd_eps` plus the largest relative displacement
+/// of the pair's nodes over the step). With `lazy` (allowed only without `within_reach`), inert
+/// pairs are [`Verdict::Dormant`] instead of having their closest points computed.
+#[allow(clippy::too_many_arguments)]
+pub fn screen_pair(
+    scene: &Scene,
+    v: &[Vec3],
+    p: Pair,
+    eps: f64,
+    nodes: &[u32; 4],
+    x: &[Vec3; 4],
+    lazy: bool,
+    ccd_eps: f64,
+) -> (Verdict, StartState, bool) {
+    let vt = p.is_vertex_triangle();
+    let vel = nodes.map(|k| scene.velocity(v, k));
+    let h = scene.h;
+    let rel = relative_speed(&vel, vt);
+    // Cheap rejection: the reach below is at most the fastest node of each primitive's speed
+    // times h, and the distance at least the axis gap (a pair rejected here would be found
+    // neither close nor active by its closest points either).
+    let split = if vt { 1 } else { 2 };
+    let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
+    let reach_max = (speed(0..split) + speed(split..4)) * h;
+    let far = (2.0 * eps).max(eps + 2.0 * reach_max);
+    let dormant_at = if lazy {
+        dormant_distance(eps, rel, h)
+    } else {
+        f64::INFINITY
+    };
+    let ccd_at = ccd_eps + rel * h * (1.0 + 1e-9);
+    // The centre axis settles most pairs; the normal axis only when it does not.
+    let scale = super::coordinate_scale(x);
+    let mut gap = super::centre_gap(x, vt);
+    if !super::gap_exceeds(gap, scale, dormant_at.min(far).max(ccd_at)) {
+        gap = gap.max(super::normal_gap(x, vt));
+    }
+    let mut start = StartState {
+        gap,
+        scale,
+        distance: None,
+    };
+    let ccd_settled = super::gap_exceeds(gap, scale, ccd_at);
+    if super::gap_exceeds(gap, scale, dormant_at) {
+        return (Verdict::Dormant, start, ccd_settled);
+    }
+    if super::gap_exceeds(gap, scale, far) {
+        return (Verdict::Far, start, ccd_settled);
+    }
+    let geom = closest(x, vt);
+    start.distance = Some(geom.distance);
+    // Only pairs that could come within eps during the step matter.
+    let reach: f64 = (0..4)
+        .map(|k| geom.weights[k].abs() * vel[k].norm())
+        .sum::<f64>()
+        * h;
+    let gap = geom.distance - eps;
+    let close = geom.distance < 2.0 * eps;
+    let active = gap <= 2.0 * reach;
+    if !active && !close {
+        return (Verdict::Far, start, ccd_settled);
+    }
+    // Target normal velocity: approach no closer than eps by the end of the step; inside eps,
+    // move out at PUSH_OUT of the overlap per step.
+    let target = if gap >= 0.0 {
+        -gap / h
+    } else {
+        -PUSH_OUT * gap / h
+    };
+    (
+        Verdict::Near(Near {
+            pair: p,
+            nodes: *nodes,
+            geom,
+            target,
+            mu: scene.friction_of(p),
+            active,
+            close,
+        }),
+        start,
+        ccd_settled,
+    )
+}
+
+/// The proximity pairs of a step in candidate order: each either looked at ([`Near`]) or
+/// dormant (evaluated on demand), as [`screen_pair`] decided.
+#[derive(Default)]
+pub struct NearList {
+    /// Per kept candidate: the pair and the index of its [`Near`] in `nears` ([`DORMANT`] until
+    /// evaluated, [`FAR`] once evaluated as far).
+    slots: Vec<(Pair, u32)>,
+    nears: Vec<Near>,
+}
+
+/// Slot marker: dormant, not evaluated.
+const DORMANT: u32 = u32::MAX;
+/// Slot marker: evaluated on demand, far.
+const FAR: u32 = u32::MAX - 1;
+
+impl NearList {
+    /// Appends a candidate's verdict (in candidate order).
+    pub fn push(&mut self, pair: Pair, verdict: Verdict) {
+        match verdict {
+            Verdict::Far => {}
+            Verdict::Dormant => self.slots.push((pair, DORMANT)),
+            Verdict::Near(n) => {
+                self.slots.push((pair, self.nears.len() as u32));
+                self.nears.push(n);
+            }
+        }
+    }
+
+    /// Appends another list (the next chunk of candidates).
+    pub fn append(&mut self, other: NearList) {
+        let base = self.nears.len() as u32;
+        self.slots.extend(other.slots.into_iter().map(|(p, i)| {
+            (
+                p,
+                if i == DORMANT || i == FAR {
+                    i
+                } else {
+                    i + base
+                },
+            )
+        }));
+        self.nears.extend(other.nears);
+    }
+
+    /// Pairs whose closest points were computed.
+    pub fn evaluated(&self) -> usize {
+        self.nears.len()
+    }
+
+    /// Dormant pairs never evaluated.
+    pub fn dormant(&self) -> usize {
+        self.slots.iter().filter(|s| s.1 == DORMANT).count()
+    }
 }
 
 /// Applies proximity impulses to `v`; returns the number of impulses applied and the cloth-cloth
@@ -40,8 +262,7 @@ pub fn repel(
     policy: &dyn ContactPolicy,
     within_reach: bool,
 ) -> (usize, Vec<Pair>) {
-    let h = scene.h;
-    let near: Vec<Near> = {
+    let list: Vec<(Pair, Verdict)> = {
         let v: &[Vec3] = v;
         candidates
             .par_iter()
@@ -50,59 +271,96 @@ pub fn repel(
                 let eps = scene.thickness(p, policy)?;
                 let nodes = scene.nodes(p);
                 let x = scene.positions(v, &nodes, 0.0);
-                // Cheap rejection: the reach below is at most the fastest node of each
-                // primitive's speed times h, and the distance at least the gap of their boxes.
-                let vt = p.is_vertex_triangle();
-                let split = if vt { 1 } else { 2 };
-                let speed = |r: std::ops::Range<usize>| {
-                    r.map(|k| scene.velocity(v, nodes[k]).norm())
-                        .fold(0.0f64, f64::max)
-                };
-                let reach_max = (speed(0..split) + speed(split..4)) * h;
-                let far = (2.0 * eps).max(eps + 2.0 * reach_max);
-                if super::swept_apart(&x, &x, vt, far) || super::sphere_apart(&x, vt, far) {
-                    return None;
-                }
-                let geom = closest(&x, vt);
-                // Only pairs that could come within eps during the step matter.
-                let reach: f64 = (0..4)
-                    .map(|k| geom.weights[k].abs() * scene.velocity(v, nodes[k]).norm())
-                    .sum::<f64>()
-                    * h;
-                let gap = geom.distance - eps;
-                let close = geom.distance < 2.0 * eps;
-                let active = gap <= 2.0 * reach;
-                if !active && !close {
-                    return None;
-                }
-                // Target normal velocity: approach no closer than eps by the end of the step;
-                // inside eps, move out at PUSH_OUT of the overlap per step.
-                let target = if gap >= 0.0 {
-                    -gap / h
-                } else {
-                    -PUSH_OUT * gap / h
-                };
-                Some(Near {
-                    pair: p,
-                    nodes,
-                    geom,
-                    target,
-                    mu: scene.friction_of(p),
-                    active,
-                    close,
-                })
+                Some((
+                    p,
+                    screen_pair(scene, v, p, eps, &nodes, &x, !within_reach, 0.0).0,
+                ))
             })
             .collect()
     };
-    let mut impulsed = vec![false; near.len()];
+    let mut near = NearList::default();
+    for (p, verdict) in list {
+        near.push(p, verdict);
+    }
+    repel_screened(scene, v, near, policy, within_reach)
+}
+
+/// [`repel`] on candidates already screened ([`screen_pair`] at the current `v`, in candidate
+/// order): the Gauss-Seidel sweeps, dormant pairs evaluated (with the start velocities, as
+/// [`screen_pair`] would have) once an impulse changed a velocity of one of their nodes. The
+/// impulses, their order and the resting contacts are those of screening every pair eagerly.
+pub fn repel_screened(
+    scene: &Scene,
+    v: &mut [Vec3],
+    near: NearList,
+    policy: &dyn ContactPolicy,
+    within_reach: bool,
+) -> (usize, Vec<Pair>) {
+    let (applied, impulsed, near) = sweeps(scene, v, near, policy);
+    // Resting contact for the next step: pairs that start close, and pairs whose approach an
+    // impulse just stopped (they end the step near their thickness). Pairs that were merely
+    // within reach of fast motion are not: linearised at the next step's start, far pairs of
+    // fast cloth would all look like contacts. (Dormant pairs are neither close nor impulsed.)
+    let resting = near
+        .slots
+        .iter()
+        .filter(|(_, i)| *i != DORMANT && *i != FAR)
+        .map(|(_, i)| (&near.nears[*i as usize], impulsed[*i as usize]))
+        .filter(|(n, hit)| {
+            matches!(n.pair.kind, PairKind::VertexTriangle | PairKind::EdgeEdge)
+                && (*hit || n.close || within_reach)
+        })
+        .map(|(n, _)| n.pair)
+        .collect();
+    (applied, resting)
+}
+
+/// The Gauss-Seidel sweeps of [`repel_screened`]: impulses applied, per [`Near`] whether it
+/// received one, and the list with the dormant pairs it had to evaluate.
+fn sweeps(
+    scene: &Scene,
+    v: &mut [Vec3],
+    mut near: NearList,
+    policy: &dyn ContactPolicy,
+) -> (usize, Vec<bool>, NearList) {
+    let v_start: Vec<Vec3> = v.to_vec();
+    let mut moved = vec![false; v.len()];
+    let mut impulsed = vec![false; near.nears.len()];
     let mut applied = 0;
     for _ in 0..SWEEPS {
         let mut any = false;
-        for (n, hit) in near
-            .iter()
-            .zip(impulsed.iter_mut())
-            .filter(|(n, _)| n.active)
-        {
+        for s in 0..near.slots.len() {
+            let (pair, mut index) = near.slots[s];
+            if index == DORMANT {
+                let nodes = scene.nodes(pair);
+                if !nodes
+                    .iter()
+                    .any(|&k| k & super::OBSTACLE == 0 && moved[k as usize])
+                {
+                    continue;
+                }
+                // A node moved: the pair's verdict as eager screening would have given it.
+                let eps = scene
+                    .thickness(pair, policy)
+                    .expect("dormant pairs have a thickness");
+                let x = scene.positions(&v_start, &nodes, 0.0);
+                index = match screen_pair(scene, &v_start, pair, eps, &nodes, &x, false, 0.0).0 {
+                    Verdict::Near(n) => {
+                        near.nears.push(n);
+                        impulsed.push(false);
+                        (near.nears.len() - 1) as u32
+                    }
+                    _ => FAR,
+                };
+                near.slots[s].1 = index;
+            }
+            if index == FAR {
+                continue;
+            }
+            let n = &near.nears[index as usize];
+            if !n.active {
+                continue;
+            }
             let g = &n.geom;
             let vn: f64 = (0..4)
                 .map(|k| g.weights[k] * g.normal.dot(&scene.velocity(v, n.nodes[k])))
@@ -122,29 +380,189 @@ pub fn repel(
                 for k in 0..4 {
                     if n.nodes[k] & super::OBSTACLE == 0 {
                         v[n.nodes[k] as usize] += dv[k];
+                        moved[n.nodes[k] as usize] = true;
                     }
                 }
                 applied += 1;
                 any = true;
-                *hit = true;
+                impulsed[index as usize] = true;
             }
         }
         if !any {
             break;
         }
     }
-    // Resting contact for the next step: pairs that start close, and pairs whose approach an
-    // impulse just stopped (they end the step near their thickness). Pairs that were merely
-    // within reach of fast motion are not: linearised at the next step's start, far pairs of
-    // fast cloth would all look like contacts.
-    let resting = near
-        .iter()
-        .zip(&impulsed)
-        .filter(|(n, &hit)| {
-            matches!(n.pair.kind, PairKind::VertexTriangle | PairKind::EdgeEdge)
-                && (hit || n.close || within_reach)
-        })
-        .map(|(n, _)| n.pair)
-        .collect();
-    (applied, resting)
+    (applied, impulsed, near)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Vec2;
+    use crate::mesh::Topology;
+    use crate::sim::collision::obstacle_free_scene_for_tests as scene_of;
+    use crate::sim::policy::UniformThickness;
+    use proptest::prelude::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    fn v3(a: [f64; 3]) -> Vec3 {
+        Vec3::new(a[0], a[1], a[2])
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        /// Oracle for [`dormant`]: a dormant pair is farther than twice its thickness and its
+        /// relative normal velocity at the closest points (computed exactly as the sweeps do)
+        /// does not reach the impulse threshold.
+        #[test]
+        fn dormant_pairs_are_not_close_and_get_no_impulse(
+            vt in any::<bool>(),
+            x in prop::array::uniform4(prop::array::uniform3(-0.05f64..0.05)),
+            v in prop::array::uniform4(prop::array::uniform3(-2.0f64..2.0)),
+            eps in 1e-4f64..5e-3,
+            h in 1e-3f64..0.05,
+        ) {
+            let x = x.map(v3);
+            let vel = v.map(v3);
+            if dormant(&x, &vel, vt, eps, h) {
+                let g = closest(&x, vt);
+                prop_assert!(g.distance >= 2.0 * eps);
+                let gap = g.distance - eps;
+                let target = -gap / h;
+                let vn: f64 = (0..4).map(|k| g.weights[k] * g.normal.dot(&vel[k])).sum();
+                prop_assert!(vn >= target - 1e-12 * target.abs(), "vn {vn} target {target}");
+            }
+        }
+    }
+
+    /// [`dormant`] is not vacuous: nearby pairs moving together are dormant, the same pairs
+    /// approaching each other fast are not.
+    #[test]
+    fn dormant_accepts_coherent_motion_and_rejects_approach() {
+        let x = [
+            Vec3::new(0.0, 0.0, 0.02),
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.02, 0.0, 0.0),
+            Vec3::new(0.0, 0.02, 0.0),
+        ];
+        let same = [Vec3::new(1.0, -0.5, 0.3); 4];
+        assert!(dormant(&x, &same, true, 2e-3, 0.02));
+        let mut approach = same;
+        approach[0].z -= 1.0;
+        assert!(!dormant(&x, &approach, true, 2e-3, 0.02));
+    }
+
+    /// Lazy screening (dormant pairs evaluated on demand) against eager screening (every pair's
+    /// closest points at once): on crumpled sheets with random velocities, strong enough for
+    /// many impulses, the velocities after proximity, the impulse count and the resting
+    /// contacts are identical, bit for bit.
+    #[test]
+    fn lazy_screening_repels_exactly_like_eager_screening() {
+        let mut woke = 0;
+        for seed in 0..8u64 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            // Two wavy sheets 7 mm apart (thickness 3 mm: the layers' pairs are beyond twice
+            // the thickness), moving together with a smooth swing; 5 % of the vertices get a
+            // random kick across the gap (impulses that wake dormant pairs).
+            let a = crate::scenes::handkerchief("a", 12, 12, 0.2, 0.2, |uv: Vec2| {
+                Vec3::new(uv.x, 0.01 * (30.0 * uv.x).sin() * (20.0 * uv.y).cos(), uv.y)
+            });
+            let na = a.positions.len() as u32;
+            let mut positions = a.positions.clone();
+            positions.extend(a.positions.iter().map(|p| p + Vec3::new(0.0, 7e-3, 0.0)));
+            let mut triangles = a.triangles.clone();
+            triangles.extend(a.triangles.iter().map(|t| t.map(|k| k + na)));
+            let sheet = crate::mesh::Mesh::new("two", positions, triangles).unwrap();
+            let topo = Topology::new(&sheet).unwrap();
+            let n = sheet.positions.len();
+            let x0 = sheet.positions.clone();
+            let (hinge, inv_mass) = (vec![[u32::MAX; 3]; sheet.triangles.len()], vec![1.0; n]);
+            let obstacles = Default::default();
+            let scene = scene_of(
+                &x0,
+                &sheet.triangles,
+                &topo.edges,
+                &hinge,
+                &obstacles,
+                &inv_mass,
+            );
+            let swing = Vec3::new(rng.random_range(-1.0..1.0), 0.3, 0.5);
+            let v0: Vec<Vec3> = x0
+                .iter()
+                .map(|p| {
+                    let kick = if rng.random_bool(0.05) {
+                        Vec3::new(0.0, rng.random_range(-0.8..0.8), 0.0)
+                    } else {
+                        Vec3::zeros()
+                    };
+                    swing * (1.0 + p.x) + kick
+                })
+                .collect();
+            let policy = UniformThickness(3e-3);
+            let margin = policy.0 * 1.0001;
+            let mut broad = super::super::broad::BroadPhase::default();
+            broad.update(&scene, &v0, margin, true);
+            let cands = broad.candidates(&scene, &v0, margin);
+            for within_reach in [false, true] {
+                let mut eager = NearList::default();
+                for &p in &cands {
+                    if let Some(eps) = scene.thickness(p, &policy) {
+                        let nodes = scene.nodes(p);
+                        let x = scene.positions(&v0, &nodes, 0.0);
+                        eager.push(
+                            p,
+                            screen_pair(&scene, &v0, p, eps, &nodes, &x, false, 0.0).0,
+                        );
+                    }
+                }
+                let mut va = v0.clone();
+                let (ia, ra) = repel_screened(&scene, &mut va, eager, &policy, within_reach);
+                let mut vb = v0.clone();
+                let lazy_list = {
+                    let mut l = NearList::default();
+                    for &p in &cands {
+                        let eps = scene.thickness(p, &policy).unwrap();
+                        let nodes = scene.nodes(p);
+                        let x = scene.positions(&v0, &nodes, 0.0);
+                        l.push(
+                            p,
+                            screen_pair(&scene, &v0, p, eps, &nodes, &x, !within_reach, 0.0).0,
+                        );
+                    }
+                    l
+                };
+                let dormant_before = lazy_list.dormant();
+                if !within_reach {
+                    assert!(dormant_before > 0, "seed {seed}: no dormant pair");
+                }
+                let (ib, rb) = repel(&scene, &mut vb, &cands, &policy, within_reach);
+                assert!(ia > 0, "seed {seed}: no impulse");
+                assert_eq!(ia, ib, "seed {seed}");
+                assert_eq!(ra, rb, "seed {seed}");
+                assert!(va == vb, "seed {seed}: velocities differ");
+                // How many dormant pairs the sweeps had to evaluate (the on-demand path runs).
+                let mut vc = v0.clone();
+                let mut lazy = lazy_list;
+                let before = lazy.evaluated();
+                let _ = repel_screened_inspect(&scene, &mut vc, &mut lazy, &policy);
+                woke += lazy.evaluated() - before;
+            }
+        }
+        assert!(woke > 0, "no dormant pair was ever woken");
+    }
+
+    /// Runs the sweeps on a list kept by the caller (to count the pairs woken on demand).
+    fn repel_screened_inspect(
+        scene: &Scene,
+        v: &mut [Vec3],
+        near: &mut NearList,
+        policy: &dyn ContactPolicy,
+    ) -> usize {
+        let list = std::mem::take(near);
+        let count = list.slots.len();
+        let (_, _, after) = sweeps(scene, v, list, policy);
+        *near = after;
+        count
+    }
 }
