@@ -618,6 +618,23 @@ impl Simulator {
     }
 
     /// The implicit solve of Baraff & Witkin (module docs): new velocities.
+    /// Coulomb friction at an obstacle contact as tangential damping (Baraff & Witkin 1998,
+    /// Sec. 5.3): the tangent-plane projector `I - n n^T` and the damping coefficient `g`,
+    /// bounded by the previous step's normal impulse over the predicted sliding speed and by
+    /// [`FRICTION_CAP`] times the vertex mass; `None` without friction or without a previous
+    /// impulse. Both integrators add it to their systems (in velocities or in positions).
+    fn friction_damping(&self, c: &ObstacleContact, v_pred: &Vec3) -> Option<(Matrix3<f64>, f64)> {
+        let i = c.vertex as usize;
+        let lam = self.contact_impulse[i];
+        if !(lam > 0.0 && c.friction > 0.0) {
+            return None;
+        }
+        let rel = v_pred - c.obstacle_velocity;
+        let vt = rel - c.normal * c.normal.dot(&rel);
+        let g = (c.friction * lam / vt.norm().max(1e-9)).min(FRICTION_CAP * self.mass[i]);
+        Some((Matrix3::identity() - c.normal * c.normal.transpose(), g))
+    }
+
     fn solve_baraff_witkin(&mut self, policy: &dyn ContactPolicy, inv_mass: &[f64]) -> Solved {
         let p = self.params.clone();
         let h = p.dt;
@@ -701,13 +718,7 @@ impl Simulator {
                 // Coulomb friction as tangential damping bounded by the normal impulse of the
                 // previous step (Baraff & Witkin 1998, Sec. 5.3 treat friction after the solve;
                 // inside it, it decelerates the cloth around the contact consistently).
-                let lam = self.contact_impulse[i];
-                if lam > 0.0 && c.friction > 0.0 {
-                    let rel = v_pred[i] - c.obstacle_velocity;
-                    let vt = rel - c.normal * c.normal.dot(&rel);
-                    let g =
-                        (c.friction * lam / vt.norm().max(1e-9)).min(FRICTION_CAP * self.mass[i]);
-                    let t = Matrix3::identity() - c.normal * c.normal.transpose();
+                if let Some((t, g)) = self.friction_damping(c, &v_pred[i]) {
                     a.values[self.pattern.diag[i] as usize] += t * g;
                     rhs[i] -= t * ((self.v[i] - c.obstacle_velocity) * g);
                 }
@@ -1006,13 +1017,8 @@ impl Simulator {
                 // Coulomb friction as tangential damping bounded by the previous step's normal
                 // impulse, as in the Baraff & Witkin solve (there in velocities, here in
                 // positions: the same quadratic divided by h^2).
-                let lam = self.contact_impulse[i];
-                if lam > 0.0 && c.friction > 0.0 {
-                    let rel = v_pred[i] - c.obstacle_velocity;
-                    let vt = rel - c.normal * c.normal.dot(&rel);
-                    let g =
-                        (c.friction * lam / vt.norm().max(1e-9)).min(FRICTION_CAP * self.mass[i]);
-                    let t = (Matrix3::identity() - c.normal * c.normal.transpose()) * (g / h2);
+                if let Some((t, g)) = self.friction_damping(c, &v_pred[i]) {
+                    let t = t * (g / h2);
                     a.values[pattern.diag[i] as usize] += t;
                     extra[i] += t * (self.x[i] + c.obstacle_velocity * h);
                 }
