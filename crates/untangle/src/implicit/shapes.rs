@@ -86,6 +86,20 @@ pub struct SphereField {
     pub radius: f64,
 }
 
+impl SphereField {
+    /// Spheres of the given radii about the origin: the analytic nested layers (exact
+    /// separations) of the layer tests.
+    pub fn concentric(radii: &[f64]) -> Vec<SphereField> {
+        radii
+            .iter()
+            .map(|&radius| SphereField {
+                centre: Vec3::zeros(),
+                radius,
+            })
+            .collect()
+    }
+}
+
 impl LayerField for SphereField {
     fn sample(&self, p: &Vec3) -> Option<FieldSample> {
         let v = p - self.centre;

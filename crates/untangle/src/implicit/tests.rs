@@ -51,13 +51,7 @@ fn expected_radius(radii: &[f64], w: &[f64], t: &[f64], i: usize) -> f64 {
 }
 
 fn sphere_scene(radii: &[f64], w: &[f64], t: &[f64], body: bool) {
-    let fields: Vec<SphereField> = radii
-        .iter()
-        .map(|&radius| SphereField {
-            centre: Vec3::zeros(),
-            radius,
-        })
-        .collect();
+    let fields = SphereField::concentric(radii);
     let layers: Vec<Layer> = fields
         .iter()
         .zip(w)
