@@ -174,6 +174,7 @@ fn timed(label: usize, verts: usize, sim: &mut Simulator) {
     let mut cands = 0usize;
     let mut quits = 0;
     let (mut pd_it, mut max_stretch, mut energy) = (0usize, 0.0f64, 0.0);
+    let (mut pd_local, mut pd_global) = (0.0, 0.0);
     let cpu0 = cpu_ms();
     for _ in 0..n {
         let r = sim.step(&policy);
@@ -194,6 +195,8 @@ fn timed(label: usize, verts: usize, sim: &mut Simulator) {
         }
         cg += r.cg.iterations;
         pd_it += r.projective.map_or(0, |p| p.iterations);
+        pd_local += r.projective.map_or(0.0, |p| p.local_ms) / n as f64;
+        pd_global += r.projective.map_or(0.0, |p| p.global_ms) / n as f64;
         max_stretch = max_stretch.max(r.max_stretch);
         energy = r.energy.stretch + r.energy.bend;
         cands += r.collisions.candidates;
@@ -221,10 +224,12 @@ fn timed(label: usize, verts: usize, sim: &mut Simulator) {
         }
     );
     println!(
-        "        integrator {:?}: {:.1} local/global iterations per step, max stretch {:.4}, \
-         elastic energy at the last step {:.4e} J",
+        "        integrator {:?}: {:.1} local/global iterations per step (local {:.2} ms, global \
+         {:.2} ms), max stretch {:.4}, elastic energy at the last step {:.4e} J",
         sim.params().integrator,
         pd_it as f64 / n as f64,
+        pd_local,
+        pd_global,
         max_stretch,
         energy
     );

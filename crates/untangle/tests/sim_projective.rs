@@ -51,14 +51,18 @@ fn free_fall_follows_the_implicit_euler_recurrence() {
 fn rest_uv_edits_drive_the_shape_through_the_kept_factor() {
     let cloth = handkerchief("s", 12, 12, 0.3, 0.3, |p| Vec3::new(p.x, 1.0, p.y));
     let g = Garment::new(cloth.clone()).unwrap();
+    // No bending: its stencil weights scale as 1/length, so with bending a uniform uv scaling
+    // changes the matrix (this test passed with bending only while the CG of a global step
+    // stopped after one iteration at its absolute floor).
     let p = SimParams {
         gravity: Vec3::zeros(),
+        bend_stiffness: 0.0,
         ..params()
     };
     let mut sim = Simulator::new(&g, p).unwrap();
     let policy = UniformThickness(1e-3);
     sim.step(&policy);
-    // A uniform scaling leaves the elastic matrix unchanged (area x |Dm^-1|^2): the factor
+    // A uniform scaling leaves the membrane matrix unchanged (area x |Dm^-1|^2): the factor
     // stays exact, one direct solve per global step, no refactorisation.
     let scaled: Vec<Vec2> = g.uv().coords.iter().map(|u| u * 0.97).collect();
     sim.set_rest_uv(&scaled).unwrap();

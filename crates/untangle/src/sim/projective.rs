@@ -46,6 +46,9 @@ use super::rest::RestShape;
 use super::sparse::{BsrMatrix, BsrPattern, CHUNK};
 use crate::geom::Vec3;
 
+/// Triangles per parallel task of the local step.
+const PROJECT_CHUNK: usize = 256;
+
 /// Per unit rest area, the weights `(arap, columns)` of the two membrane constraints that match
 /// Baraff & Witkin's stretch stiffness `k_stretch` and shear stiffness `k_shear` to second order
 /// (module docs). When `k_stretch < 2 k_shear` the column weight is 0 and the stretch stiffness
@@ -300,38 +303,53 @@ impl Projective {
     /// right-hand side `sum_i w_i S_i^T A_i^T p_i` per vertex (Bouaziz et al. Eq. 12). Parallel
     /// over triangles, gathered per vertex in a fixed order (deterministic).
     pub fn local_step(&self, x: &[Vec3]) -> Vec<Vec3> {
-        let (wa, wc) = self.weights;
-        let targets: Vec<Matrix3x2<f64>> = (0..self.triangles.len())
-            .into_par_iter()
-            .with_min_len(256)
-            .map(|t| {
-                let f = self.gradient(t, x);
-                let r = project_orthonormal(&f);
-                let area = self.rest[t].area;
-                let mut p = r * (wa * area);
-                if wc > 0.0 {
-                    p += project_unit_columns(&f, &r) * (wc * area);
-                }
-                p
-            })
-            .collect();
+        let mut targets = Vec::new();
+        self.project(x, &mut targets);
         let mut out = vec![Vec3::zeros(); self.n];
         out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, os)| {
             for (k, o) in os.iter_mut().enumerate() {
-                let i = c * CHUNK + k;
-                let mut acc = Vec3::zeros();
-                for &(t, corner) in
-                    &self.inc[self.inc_offsets[i] as usize..self.inc_offsets[i + 1] as usize]
-                {
-                    let (t, corner) = (t as usize, corner as usize);
-                    let r = &self.rest[t];
-                    let p = &targets[t];
-                    acc += p.column(0) * r.a[corner] + p.column(1) * r.b[corner];
-                }
-                *o = acc;
+                *o = self.gather(&targets, c * CHUNK + k);
             }
         });
         out
+    }
+
+    /// The projections of the local step (Bouaziz et al. Sec. 4): per triangle the weighted
+    /// target `area (w_arap R + w_col U)` of its deformation gradient at `x` ([`project_orthonormal`],
+    /// [`project_unit_columns`]), into `targets` (resized). Parallel over chunks of triangles.
+    pub fn project(&self, x: &[Vec3], targets: &mut Vec<Matrix3x2<f64>>) {
+        let (wa, wc) = self.weights;
+        targets.resize(self.triangles.len(), Matrix3x2::zeros());
+        targets
+            .par_chunks_mut(PROJECT_CHUNK)
+            .enumerate()
+            .for_each(|(c, ts)| {
+                for (k, p) in ts.iter_mut().enumerate() {
+                    let t = c * PROJECT_CHUNK + k;
+                    let f = self.gradient(t, x);
+                    let r = project_orthonormal(&f);
+                    let area = self.rest[t].area;
+                    *p = r * (wa * area);
+                    if wc > 0.0 {
+                        *p += project_unit_columns(&f, &r) * (wc * area);
+                    }
+                }
+            });
+    }
+
+    /// Vertex `i`'s share `sum_t S_t^T A_t^T p_t` of the local step's right-hand side, from the
+    /// projections of [`Projective::project`] (incident triangles in a fixed order).
+    pub fn gather(&self, targets: &[Matrix3x2<f64>], i: usize) -> Vec3 {
+        let mut acc = Vec3::zeros();
+        for &(t, corner) in
+            &self.inc[self.inc_offsets[i] as usize..self.inc_offsets[i + 1] as usize]
+        {
+            let (t, corner) = (t as usize, corner as usize);
+            let r = &self.rest[t];
+            let p = &targets[t];
+            acc += p.column(0) * r.a[corner] + p.column(1) * r.b[corner];
+        }
+        acc
     }
 
     /// The elastic energy at `x`: membrane (distance of every triangle's gradient to the two
@@ -369,8 +387,9 @@ pub struct StepProblem<'a> {
     pub inertia: &'a [f64],
     /// `beta / h` (stiffness damping on the elastic matrix).
     pub damping: f64,
-    /// The global matrix: `values` as identity blocks, plus contact blocks.
-    pub matrix: &'a BsrMatrix,
+    /// The global matrix: `values` as identity blocks, plus contact blocks; `None` when it is
+    /// exactly `values` (built on demand if a CG global step needs it).
+    pub matrix: Option<&'a BsrMatrix>,
     /// The scalar part of the global matrix ([`Projective::system_values`]).
     pub values: &'a [f64],
     /// Whether `matrix` is exactly `values` (no contact blocks) and the factor is of `values`
@@ -383,6 +402,15 @@ pub struct StepProblem<'a> {
     pub filter: &'a [Filter],
     /// Prescribed positions in the constrained directions.
     pub targets: &'a [Vec3],
+}
+
+/// Reused buffers of the local/global iterations (no allocation per iteration).
+#[derive(Clone, Debug, Default)]
+pub struct Workspace {
+    /// The local step's weighted projections, per triangle.
+    pub targets: Vec<Matrix3x2<f64>>,
+    /// The eliminated constant right-hand side of a direct global step.
+    rhs: Vec<Vec3>,
 }
 
 /// What the local/global iterations of one step did (`StepReport::projective`).
@@ -417,7 +445,7 @@ impl Projective {
     }
 
     /// One local/global iteration from `x` (constrained directions already at their targets):
-    /// [`Projective::local_step`], then [`Projective::global_step`].
+    /// [`Projective::project`], then [`Projective::global_step`].
     pub fn iterate(
         &self,
         problem: &StepProblem,
@@ -425,50 +453,66 @@ impl Projective {
         factor: &ScalarCholesky,
         settings: PcgSettings,
         x: &mut [Vec3],
+        work: &mut Workspace,
     ) -> PcgResult {
-        let local = self.local_step(x);
-        self.global_step(problem, rhs_const, &local, factor, settings, x, None)
+        self.project(x, &mut work.targets);
+        self.global_step(problem, rhs_const, factor, settings, x, None, work)
     }
 
-    /// The global step: CG on `A x = rhs_const + local` for the increment from the current
-    /// iterate (warm start), preconditioned with `factor`. With `force`, also the residual
-    /// force `A x - rhs` at the new iterate (the constraint forces at constrained vertices).
+    /// The global step with the local step's projections in `work.targets`
+    /// ([`Projective::project`]). When the factor is exact for the problem (`problem.exact`)
+    /// and no force is asked: one direct solve of the eliminated system, the local step's
+    /// per-vertex gather fused into the forward substitution. Otherwise CG on
+    /// `A x = rhs_const + local` for the increment from the current iterate (warm start),
+    /// preconditioned with `factor`; with `force`, also the residual force `A x - rhs` at the
+    /// new iterate (the constraint forces at constrained vertices).
     #[allow(clippy::too_many_arguments)]
     pub fn global_step(
         &self,
         problem: &StepProblem,
         rhs_const: &[Vec3],
-        local: &[Vec3],
         factor: &ScalarCholesky,
         settings: PcgSettings,
         x: &mut [Vec3],
         force: Option<&mut Vec<Vec3>>,
+        work: &mut Workspace,
     ) -> PcgResult {
         let n = self.n;
+        let targets = &work.targets;
         if problem.exact && force.is_none() {
             // Direct solve of the eliminated system: fixed rows `d x = d target`, free rows
             // `B_ff x_f = rhs_f - B_fc target_c`.
             let p = &self.pattern;
-            let mut rhs: Vec<Vec3> = (0..n).map(|i| rhs_const[i] + local[i]).collect();
+            let base = &mut work.rhs;
+            base.clear();
+            base.extend_from_slice(rhs_const);
             for (j, f) in problem.filter.iter().enumerate() {
                 if *f == Filter::Fixed {
                     let t = problem.targets[j];
                     for s in p.offsets[j] as usize..p.offsets[j + 1] as usize {
                         let i = p.cols[s] as usize;
                         if i != j && problem.filter[i] != Filter::Fixed {
-                            rhs[i] -= t * problem.values[s];
+                            base[i] -= t * problem.values[s];
                         }
                     }
-                    rhs[j] = t * problem.values[p.diag[j] as usize];
+                    base[j] = t * problem.values[p.diag[j] as usize];
                 }
             }
-            factor.solve3(&mut rhs);
-            for i in 0..n {
-                x[i] = if problem.filter[i] == Filter::Fixed {
-                    problem.targets[i]
-                } else {
-                    rhs[i]
-                };
+            let base = &*base;
+            factor.solve_with(
+                |i| {
+                    if problem.filter[i] == Filter::Fixed {
+                        base[i]
+                    } else {
+                        base[i] + self.gather(targets, i)
+                    }
+                },
+                x,
+            );
+            for (i, xi) in x.iter_mut().enumerate() {
+                if problem.filter[i] == Filter::Fixed {
+                    *xi = problem.targets[i];
+                }
             }
             return PcgResult {
                 iterations: 1,
@@ -476,14 +520,24 @@ impl Projective {
                 converged: true,
             };
         }
+        let owned;
+        let matrix = match problem.matrix {
+            Some(m) => m,
+            None => {
+                owned = scalar_blocks(&self.pattern, problem.values);
+                &owned
+            }
+        };
         let mut ax = vec![Vec3::zeros(); n];
-        problem.matrix.mul(&self.pattern, x, &mut ax);
-        let b: Vec<Vec3> = (0..n).map(|i| rhs_const[i] + local[i] - ax[i]).collect();
+        matrix.mul(&self.pattern, x, &mut ax);
+        let b: Vec<Vec3> = (0..n)
+            .map(|i| rhs_const[i] + self.gather(targets, i) - ax[i])
+            .collect();
         let z: Vec<Vec3> = (0..n).map(|i| problem.targets[i] - x[i]).collect();
         let mut dx = vec![Vec3::zeros(); n];
         let r = pcg::solve(
             &self.pattern,
-            problem.matrix,
+            matrix,
             &b,
             problem.filter,
             &z,
@@ -495,7 +549,7 @@ impl Projective {
             x[i] += dx[i];
         }
         if let Some(f) = force {
-            problem.matrix.mul(&self.pattern, &dx, &mut ax);
+            matrix.mul(&self.pattern, &dx, &mut ax);
             f.resize(n, Vec3::zeros());
             for i in 0..n {
                 f[i] = ax[i] - b[i];
@@ -708,7 +762,7 @@ mod tests {
             y: &s.y,
             inertia: &s.inertia,
             damping: s.damping,
-            matrix: &a,
+            matrix: Some(&a),
             values: &values,
             exact: factor_scale == 1.0,
             rhs_extra: &extra,
@@ -727,8 +781,10 @@ mod tests {
             max_iterations: 500,
         };
         let mut energies = vec![s.system.step_energy(&problem, x)];
+        let mut work = Workspace::default();
         for _ in 0..iterations {
-            s.system.iterate(&problem, &rhs, &chol, settings, x);
+            s.system
+                .iterate(&problem, &rhs, &chol, settings, x, &mut work);
             energies.push(s.system.step_energy(&problem, x));
         }
         energies

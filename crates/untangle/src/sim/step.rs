@@ -958,8 +958,13 @@ impl Simulator {
         let (mut contacts, mut springs) = self.gather_contacts(policy, &v_pred, inv_mass);
         let t1 = Instant::now();
         let settings = PcgSettings {
-            tolerance: p.cg_tolerance,
-            absolute: p.cg_tolerance * p.gravity.norm() * h * self.total_mass.sqrt(),
+            // Relative to the residual at the current iterate, without the Baraff & Witkin
+            // path's absolute floor: with it (and with 1e-3) the factor-preconditioned CG
+            // stopped after one iteration and the 20k-vertex t-shirt, under ~36k contact springs,
+            // blew up at step 14 (stretch energy 1e7 J); solved to 1e-6 (2-4 iterations per
+            // global step) it stayed bounded (BENCHMARKS.md, branch sim7).
+            tolerance: p.cg_tolerance.min(PD_CG_TOLERANCE),
+            absolute: 0.0,
             // Inexact global steps keep the energy decreasing (CG from the current iterate
             // only lowers the quadratic), and the next iteration solves again.
             max_iterations: p.cg_max_iterations.min(PD_CG_CAP),
@@ -978,150 +983,167 @@ impl Simulator {
         let mut releases = 0;
         let pattern = pd.system.pattern().clone();
         let h2 = h * h;
-        'rounds: loop {
-            // The global system of this round: base matrix plus contact springs and friction.
-            let mut a = projective::scalar_blocks(&pattern, &values);
-            let mut extra = vec![Vec3::zeros(); n];
-            for s in &springs {
-                let k = s.stiffness_h2 / h2;
-                a.add_pair(
-                    &pattern,
-                    s.nodes,
-                    s.weights,
-                    s.normal * s.normal.transpose() * k,
-                );
-                let c = s.thickness - s.distance
-                    + s.normal.dot(&(0..4).fold(Vec3::zeros(), |acc, j| {
-                        acc + self.x[s.nodes[j] as usize] * s.weights[j]
-                    }));
-                for j in 0..4 {
-                    extra[s.nodes[j] as usize] += s.normal * (k * c * s.weights[j]);
+        let mut work = projective::Workspace::default();
+        // Chebyshev's iterate before the last (`prev`) and the last (`cur`); reused buffers.
+        let (mut prev, mut cur) = (Vec::new(), Vec::new());
+        // The iterations run inside the pool (one hand-over to a worker thread per step instead
+        // of one per parallel loop: under load a woken worker is often descheduled).
+        rayon::scope(|_| {
+            'rounds: loop {
+                // The global system of this round: base matrix plus contact springs and friction,
+                // assembled only for CG global steps (a direct solve uses the factored matrix).
+                let mut extra = vec![Vec3::zeros(); n];
+                let direct = pd.factor_exact && springs.is_empty() && contacts.is_empty();
+                let mut a = (!direct).then(|| projective::scalar_blocks(&pattern, &values));
+                if let Some(a) = &mut a {
+                    for s in &springs {
+                        let k = s.stiffness_h2 / h2;
+                        a.add_pair(
+                            &pattern,
+                            s.nodes,
+                            s.weights,
+                            s.normal * s.normal.transpose() * k,
+                        );
+                        let c = s.thickness - s.distance
+                            + s.normal.dot(&(0..4).fold(Vec3::zeros(), |acc, j| {
+                                acc + self.x[s.nodes[j] as usize] * s.weights[j]
+                            }));
+                        for j in 0..4 {
+                            extra[s.nodes[j] as usize] += s.normal * (k * c * s.weights[j]);
+                        }
+                    }
+                    a.finish_pairs(&pattern);
                 }
-            }
-            a.finish_pairs(&pattern);
-            let mut filter: Vec<Filter> = self
-                .pinned
-                .iter()
-                .map(|&q| if q { Filter::Fixed } else { Filter::Free })
-                .collect();
-            let mut targets: Vec<Vec3> = (0..n)
-                .map(|i| match (self.pinned[i], self.pin_targets[i]) {
-                    (true, Some(t)) => t,
-                    _ => self.x[i],
-                })
-                .collect();
-            for c in &contacts {
-                let i = c.vertex as usize;
-                filter[i] = Filter::Normal(c.normal);
-                targets[i] = self.x[i] + c.normal * (h * c.normal_velocity);
-                // Coulomb friction as tangential damping bounded by the previous step's normal
-                // impulse, as in the Baraff & Witkin solve (there in velocities, here in
-                // positions: the same quadratic divided by h^2).
-                if let Some((t, g)) = self.friction_damping(c, &v_pred[i]) {
-                    let t = t * (g / h2);
-                    a.values[pattern.diag[i] as usize] += t;
-                    extra[i] += t * (self.x[i] + c.obstacle_velocity * h);
+                let mut filter: Vec<Filter> = self
+                    .pinned
+                    .iter()
+                    .map(|&q| if q { Filter::Fixed } else { Filter::Free })
+                    .collect();
+                let mut targets: Vec<Vec3> = (0..n)
+                    .map(|i| match (self.pinned[i], self.pin_targets[i]) {
+                        (true, Some(t)) => t,
+                        _ => self.x[i],
+                    })
+                    .collect();
+                for c in &contacts {
+                    let i = c.vertex as usize;
+                    filter[i] = Filter::Normal(c.normal);
+                    targets[i] = self.x[i] + c.normal * (h * c.normal_velocity);
+                    // Coulomb friction as tangential damping bounded by the previous step's normal
+                    // impulse, as in the Baraff & Witkin solve (there in velocities, here in
+                    // positions: the same quadratic divided by h^2).
+                    if let Some((t, g)) = self.friction_damping(c, &v_pred[i]) {
+                        let t = t * (g / h2);
+                        if let Some(a) = &mut a {
+                            a.values[pattern.diag[i] as usize] += t;
+                        }
+                        extra[i] += t * (self.x[i] + c.obstacle_velocity * h);
+                    }
                 }
-            }
-            for i in 0..n {
-                x[i] = match filter[i] {
-                    Filter::Free => x[i],
-                    Filter::Fixed => targets[i],
-                    Filter::Normal(nn) => x[i] + nn * nn.dot(&(targets[i] - x[i])),
-                };
-            }
-            let problem = StepProblem {
-                x0: &self.x,
-                y: &y,
-                inertia: &inertia,
-                damping,
-                matrix: &a,
-                values: &values,
-                exact: pd.factor_exact
-                    && springs.is_empty()
-                    && filter.iter().all(|f| !matches!(f, Filter::Normal(_))),
-                rhs_extra: &extra,
-                filter: &filter,
-                targets: &targets,
-            };
-            let rhs_const = pd.system.constant_rhs(&problem);
-            let Some(factor) = pd.factor.as_ref() else {
-                break 'rounds;
-            };
-            // Chebyshev semi-iterative acceleration (Wang 2015): the iterate before the last
-            // and the current weight; restarted with every new system.
-            let mut before: Option<Vec<Vec3>> = None;
-            let mut omega = 1.0;
-            loop {
-                let tl = Instant::now();
-                // Only for systems without contact terms and with the exact factor: there the
-                // global step is one fixed linear map, as the acceleration assumes (with contact
-                // terms it diverged on the 20k-vertex t-shirt: stretch 543 vs 15 without).
-                let current = (p.projective_chebyshev > 0.0 && problem.exact).then(|| x.clone());
-                let local = pd.system.local_step(&x);
-                let tg = Instant::now();
-                let last = result.iterations + 1 >= p.projective_iterations;
-                let check = !last
-                    && releases < MAX_RELEASE_ROUNDS
-                    && (!contacts.is_empty() || !springs.is_empty());
-                let r = pd.system.global_step(
-                    &problem,
-                    &rhs_const,
-                    &local,
-                    factor,
-                    settings,
-                    &mut x,
-                    (check || (last && !contacts.is_empty())).then_some(&mut force),
-                );
-                if let (Some(prev), Some(cur)) = (&before, &current) {
-                    // x = omega (x_hat - x_prev) + x_prev; the constrained components agree in
-                    // both, so the constraints stay satisfied.
-                    let rho2 = p.projective_chebyshev * p.projective_chebyshev;
-                    omega = if omega == 1.0 {
-                        2.0 / (2.0 - rho2)
-                    } else {
-                        4.0 / (4.0 - rho2 * omega)
+                for i in 0..n {
+                    x[i] = match filter[i] {
+                        Filter::Free => x[i],
+                        Filter::Fixed => targets[i],
+                        Filter::Normal(nn) => x[i] + nn * nn.dot(&(targets[i] - x[i])),
                     };
-                    for i in 0..n {
-                        x[i] = (x[i] - prev[i]) * omega + prev[i];
-                    }
-                    debug_assert_eq!(cur.len(), n);
                 }
-                before = current;
-                result.local_ms += (tg - tl).as_secs_f64() * 1e3;
-                result.global_ms += tg.elapsed().as_secs_f64() * 1e3;
-                result.iterations += 1;
-                cg.iterations += r.iterations;
-                largest_cg = largest_cg.max(r.iterations);
-                cg.relative_residual = r.relative_residual;
-                cg.converged &= r.converged;
-                if result.iterations >= p.projective_iterations {
+                let problem = StepProblem {
+                    x0: &self.x,
+                    y: &y,
+                    inertia: &inertia,
+                    damping,
+                    matrix: a.as_ref(),
+                    values: &values,
+                    exact: pd.factor_exact
+                        && springs.is_empty()
+                        && filter.iter().all(|f| !matches!(f, Filter::Normal(_))),
+                    rhs_extra: &extra,
+                    filter: &filter,
+                    targets: &targets,
+                };
+                let rhs_const = pd.system.constant_rhs(&problem);
+                let Some(factor) = pd.factor.as_ref() else {
                     break 'rounds;
-                }
-                if check {
-                    // Release obstacle contacts that pull and springs that end apart
-                    // (Baraff & Witkin's rule), then continue with the new system.
-                    let keep_c: Vec<ObstacleContact> = contacts
-                        .iter()
-                        .filter(|c| c.normal.dot(&force[c.vertex as usize]) >= 0.0)
-                        .copied()
-                        .collect();
-                    let v_new: Vec<Vec3> = (0..n).map(|i| (x[i] - self.x[i]) / h).collect();
-                    let keep_s: Vec<contact::ClothContact> = springs
-                        .iter()
-                        .filter(|s| s.end_gap(&v_new, h) <= s.thickness)
-                        .copied()
-                        .collect();
-                    let released = keep_c.len() < contacts.len() || keep_s.len() < springs.len();
-                    contacts = keep_c;
-                    springs = keep_s;
-                    if released {
-                        releases += 1;
-                        continue 'rounds;
+                };
+                // Chebyshev semi-iterative acceleration (Wang 2015): the iterate before the last
+                // and the current weight; restarted with every new system.
+                let mut have_prev = false;
+                let mut omega = 1.0;
+                loop {
+                    let tl = Instant::now();
+                    // Only for systems without contact terms and with the exact factor: there the
+                    // global step is one fixed linear map, as the acceleration assumes (with contact
+                    // terms it diverged on the 20k-vertex t-shirt: stretch 543 vs 15 without).
+                    let chebyshev = p.projective_chebyshev > 0.0 && problem.exact;
+                    if chebyshev {
+                        cur.clone_from(&x);
+                    }
+                    pd.system.project(&x, &mut work.targets);
+                    let tg = Instant::now();
+                    let last = result.iterations + 1 >= p.projective_iterations;
+                    let check = !last
+                        && releases < MAX_RELEASE_ROUNDS
+                        && (!contacts.is_empty() || !springs.is_empty());
+                    let r = pd.system.global_step(
+                        &problem,
+                        &rhs_const,
+                        factor,
+                        settings,
+                        &mut x,
+                        (check || (last && !contacts.is_empty())).then_some(&mut force),
+                        &mut work,
+                    );
+                    if chebyshev && have_prev {
+                        // x = omega (x_hat - x_prev) + x_prev; the constrained components agree in
+                        // both, so the constraints stay satisfied.
+                        let rho2 = p.projective_chebyshev * p.projective_chebyshev;
+                        omega = if omega == 1.0 {
+                            2.0 / (2.0 - rho2)
+                        } else {
+                            4.0 / (4.0 - rho2 * omega)
+                        };
+                        for i in 0..n {
+                            x[i] = (x[i] - prev[i]) * omega + prev[i];
+                        }
+                    }
+                    std::mem::swap(&mut prev, &mut cur);
+                    have_prev = chebyshev;
+                    result.local_ms += (tg - tl).as_secs_f64() * 1e3;
+                    result.global_ms += tg.elapsed().as_secs_f64() * 1e3;
+                    result.iterations += 1;
+                    cg.iterations += r.iterations;
+                    largest_cg = largest_cg.max(r.iterations);
+                    cg.relative_residual = r.relative_residual;
+                    cg.converged &= r.converged;
+                    if result.iterations >= p.projective_iterations {
+                        break 'rounds;
+                    }
+                    if check {
+                        // Release obstacle contacts that pull and springs that end apart
+                        // (Baraff & Witkin's rule), then continue with the new system.
+                        let keep_c: Vec<ObstacleContact> = contacts
+                            .iter()
+                            .filter(|c| c.normal.dot(&force[c.vertex as usize]) >= 0.0)
+                            .copied()
+                            .collect();
+                        let v_new: Vec<Vec3> = (0..n).map(|i| (x[i] - self.x[i]) / h).collect();
+                        let keep_s: Vec<contact::ClothContact> = springs
+                            .iter()
+                            .filter(|s| s.end_gap(&v_new, h) <= s.thickness)
+                            .copied()
+                            .collect();
+                        let released =
+                            keep_c.len() < contacts.len() || keep_s.len() < springs.len();
+                        contacts = keep_c;
+                        springs = keep_s;
+                        if released {
+                            releases += 1;
+                            continue 'rounds;
+                        }
                     }
                 }
             }
-        }
+        });
         result.cg_iterations = cg.iterations;
         result.relative_residual = cg.relative_residual;
         pd.last = largest_cg;
@@ -1317,6 +1339,8 @@ struct Solved {
 const PD_REFACTOR_CG: usize = 3;
 /// Cap of the CG iterations of one projective global step.
 const PD_CG_CAP: usize = 10;
+/// Relative CG tolerance of a projective global step with contact terms.
+const PD_CG_TOLERANCE: f64 = 1e-6;
 
 /// What the factor of the projective global matrix was computed for.
 #[derive(Clone, Debug, PartialEq)]
