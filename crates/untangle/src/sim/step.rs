@@ -940,6 +940,9 @@ impl Simulator {
                     let x = t.map(|k| &self.x[k as usize]);
                     stretch_energy(r, x, p.stretch_stiffness, p.shear_stiffness)
                 })
+                // Summed in triangle order: rayon's parallel sum depends on the thread count.
+                .collect::<Vec<f64>>()
+                .iter()
                 .sum(),
             bend: self
                 .rest
