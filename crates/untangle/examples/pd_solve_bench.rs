@@ -1,11 +1,12 @@
 //! Benchmark of projective dynamics' global-step solve: the scalar system of the ARCSim t-shirt
 //! refined `LEVEL` times (2: 4,950 vertices, 3: 19,566), pinned at the shoulders, factored
-//! once; then `REPS` solves of three right-hand sides with faer's own sparse-Cholesky solve
-//! (`LltRef::solve_in_place_with_conj`, what branch sim6 used) and with the solve of
-//! `ScalarCholesky` (the factor copied into `sim::triangular::TriangularFactor`), interleaved in
-//! rounds. Prints the per-solve process CPU time (less sensitive to other processes than wall
-//! clock) and wall time of each, the factor size and the solve's schedule, and the largest
-//! difference between the two solutions.
+//! once; then `REPS` solves of three right-hand sides with faer's sparse-Cholesky solve called
+//! directly (`LltRef::solve_in_place_with_conj`) and through `ScalarCholesky::solve_with` (as
+//! the simulator's global step calls it: right-hand side evaluated in parallel, then faer),
+//! interleaved in rounds; and `REPS` local steps (projection + per-vertex gather). Prints per
+//! solve / per local step the process CPU time (less sensitive to other processes than wall
+//! clock) and the wall time, the factor size, and the largest difference between the two
+//! solutions.
 //!
 //! `cargo run --release -p untangle --example pd_solve_bench [-- LEVEL REPS]`
 
@@ -185,12 +186,9 @@ fn main() {
         (thread_cpu() - c, w.elapsed().as_secs_f64())
     });
     println!(
-        "level {level}: {n} vertices, factor {} values (faer), {} below the diagonal; \
-         factor + copy {:.1} ms; schedule {:?}; threads {}",
+        "level {level}: {n} vertices, factor {} values; factor {:.1} ms; threads {}",
         chol.factor_entries(),
-        chol.lower_entries(),
         factor_ms,
-        chol.schedule(),
         rayon::current_num_threads()
     );
     println!(
@@ -199,7 +197,7 @@ fn main() {
         cpu_a / total * 1e3
     );
     println!(
-        "ScalarCholesky:    {:.3} ms wall, {:.3} ms CPU (process) per solve; max rel. difference {:.1e}",
+        "ScalarCholesky::solve_with: {:.3} ms wall, {:.3} ms CPU (process) per solve; max rel. difference {:.1e}",
         wall_b / total * 1e3,
         cpu_b / total * 1e3,
         diff

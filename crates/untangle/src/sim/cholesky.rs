@@ -5,10 +5,10 @@
 //!
 //! The symbolic analysis (approximate-minimum-degree ordering, supernodal structure) is done
 //! once per sparsity pattern by the `faer` crate; numeric refactorisations (new rest shape, new
-//! pin set) reuse it. `faer` is built without its `rayon` feature: the factorisation runs
-//! sequentially. The solves use the factor copied into a [`TriangularFactor`] (subtree-parallel
-//! substitution with the three coordinates together, bit-identical for any thread count): on
-//! the 5k-vertex t-shirt faer's supernodal solve spent most of its time in small dense kernels.
+//! pin set) reuse it. `faer` is built without its `rayon` feature: factorisation and solves run
+//! sequentially and are bit-identical for any thread count. (A subtree-parallel substitution of
+//! our own, three coordinates interleaved, was tried on branch sim7 and was not faster: the
+//! solve is bound by reading the factor; BENCHMARKS.md.)
 //!
 //! Pinned (fixed) nodes are eliminated: their rows and columns are replaced by the diagonal, so
 //! that `S (B^-1 (x) I3) S` with the filter projection `S` is the exact inverse of the filtered
@@ -17,16 +17,16 @@
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
     SymmetricOrdering,
 };
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Par, Side};
+use faer::{Conj, MatMut, Par, Side};
+use rayon::prelude::*;
 
 use super::pcg::Filter;
 use super::sparse::BsrPattern;
-use super::triangular::{SplitParams, TriangularFactor};
 use crate::geom::Vec3;
 
 /// The symbolic analysis of one node pattern plus the numeric factor of the last matrix given
@@ -43,11 +43,8 @@ pub struct ScalarCholesky {
     factor: Vec<f64>,
     factored: bool,
     scratch: MemBuffer,
-    /// The numeric factor as used by the solves.
-    triangular: TriangularFactor,
-    split: SplitParams,
-    /// Scratch of the solves: a copy of the right-hand side, the permuted work vector.
-    solve_scratch: std::sync::Mutex<(Vec<Vec3>, Vec<Vec3>)>,
+    /// Scratch of the solves: faer's stack and the right-hand sides column by column.
+    solve_scratch: std::sync::Mutex<(MemBuffer, Vec<f64>)>,
 }
 
 impl std::fmt::Debug for ScalarCholesky {
@@ -65,19 +62,14 @@ impl ScalarCholesky {
     /// The symbolic analysis of `pattern` (one scalar per block slot); `None` if it fails (out
     /// of memory).
     pub fn new(pattern: &BsrPattern) -> Option<ScalarCholesky> {
-        Self::with_params(
-            pattern,
-            SupernodalThreshold::default(),
-            SplitParams::default(),
-        )
+        Self::with_threshold(pattern, SupernodalThreshold::default())
     }
 
-    /// [`ScalarCholesky::new`] with faer's supernodal/simplicial choice and the solve's
-    /// subtree split given (the tests cover both factor layouts and small splits).
-    pub fn with_params(
+    /// [`ScalarCholesky::new`] with faer's supernodal/simplicial choice given (the tests cover
+    /// both factor layouts).
+    pub fn with_threshold(
         pattern: &BsrPattern,
         supernodal: SupernodalThreshold,
-        split: SplitParams,
     ) -> Option<ScalarCholesky> {
         let n = pattern.rows();
         let mut col_ptr = Vec::with_capacity(n + 1);
@@ -108,6 +100,8 @@ impl ScalarCholesky {
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
         )
         .ok()?;
+        let solve_scratch =
+            MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq)).ok()?;
         Some(ScalarCholesky {
             n,
             values: vec![0.0; row_idx.len()],
@@ -118,9 +112,7 @@ impl ScalarCholesky {
             symbolic,
             factored: false,
             scratch,
-            triangular: TriangularFactor::default(),
-            split,
-            solve_scratch: std::sync::Mutex::new((Vec::new(), Vec::new())),
+            solve_scratch: std::sync::Mutex::new((solve_scratch, Vec::new())),
         })
     }
 
@@ -178,62 +170,8 @@ impl ScalarCholesky {
             )
             .is_ok()
             && self.factor.iter().all(|v| v.is_finite());
-        self.factored = ok && self.build_triangular();
-        self.factored
-    }
-
-    /// Copies faer's factor (simplicial or supernodal layout) into the solve's
-    /// [`TriangularFactor`]; `false` if it is not a valid factor.
-    fn build_triangular(&mut self) -> bool {
-        let n = self.n;
-        let perm: Vec<usize> = match self.symbolic.perm() {
-            Some(p) => p.arrays().0.to_vec(),
-            None => (0..n).collect(),
-        };
-        let mut diag = vec![0.0; n];
-        let mut lower: Vec<Vec<(u32, f64)>> = vec![Vec::new(); n];
-        match self.symbolic.raw() {
-            SymbolicCholeskyRaw::Simplicial(s) => {
-                let (cp, ri) = (s.col_ptr(), s.row_idx());
-                for j in 0..n {
-                    for k in cp[j]..cp[j + 1] {
-                        let (i, v) = (ri[k], self.factor[k]);
-                        if i == j {
-                            diag[j] = v;
-                        } else if v != 0.0 {
-                            lower[j].push((i as u32, v));
-                        }
-                    }
-                }
-            }
-            SymbolicCholeskyRaw::Supernodal(s) => {
-                for sn in 0..s.n_supernodes() {
-                    let (b, e) = (s.supernode_begin()[sn], s.supernode_end()[sn]);
-                    let pattern =
-                        &s.row_idx()[s.col_ptr_for_row_idx()[sn]..][..s.nnz_per_super()[sn]];
-                    let ncols = e - b;
-                    let nrows = ncols + pattern.len();
-                    let vals = &self.factor[s.col_ptr_for_val()[sn]..s.col_ptr_for_val()[sn + 1]];
-                    for c in 0..ncols {
-                        let col = &vals[c * nrows..(c + 1) * nrows];
-                        diag[b + c] = col[c];
-                        for (r, &v) in col.iter().enumerate().skip(c + 1) {
-                            let i = if r < ncols { b + r } else { pattern[r - ncols] };
-                            if v != 0.0 {
-                                lower[b + c].push((i as u32, v));
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        match TriangularFactor::new(&perm, &diag, &lower, self.split) {
-            Some(t) => {
-                self.triangular = t;
-                true
-            }
-            None => false,
-        }
+        self.factored = ok;
+        ok
     }
 
     /// Solves `B X = R` in place for the three columns of `r` (`x`, `y`, `z` coordinates).
@@ -241,15 +179,18 @@ impl ScalarCholesky {
         if !self.factored {
             return;
         }
+        let n = self.n;
         let mut guard = self.solve_scratch.lock().unwrap_or_else(|e| e.into_inner());
-        let (copy, work) = &mut *guard;
-        copy.clear();
-        copy.extend_from_slice(r);
-        self.triangular.solve(|i| copy[i], r, work);
+        let (stack, buf) = &mut *guard;
+        buf.resize(3 * n, 0.0);
+        for (i, v) in r.iter().enumerate() {
+            (buf[i], buf[n + i], buf[2 * n + i]) = (v.x, v.y, v.z);
+        }
+        self.solve_columns(stack, buf, r);
     }
 
-    /// Solves `B X = R` into `out` with row `i` of `R` given by `rhs(i)`, evaluated inside the
-    /// (parallel) forward substitution. Without a factor `out` is left unchanged.
+    /// Solves `B X = R` into `out` with row `i` of `R` given by `rhs(i)` (evaluated in parallel,
+    /// then one sequential solve). Without a factor `out` is left unchanged.
     pub fn solve_with<F>(&self, rhs: F, out: &mut [Vec3])
     where
         F: Fn(usize) -> Vec3 + Sync,
@@ -257,19 +198,38 @@ impl ScalarCholesky {
         if !self.factored {
             return;
         }
+        let n = self.n;
         let mut guard = self.solve_scratch.lock().unwrap_or_else(|e| e.into_inner());
-        self.triangular.solve(rhs, out, &mut guard.1);
+        let (stack, buf) = &mut *guard;
+        buf.resize(3 * n, 0.0);
+        let (bx, rest) = buf.split_at_mut(n);
+        let (by, bz) = rest.split_at_mut(n);
+        bx.par_chunks_mut(RHS_CHUNK)
+            .zip(by.par_chunks_mut(RHS_CHUNK))
+            .zip(bz.par_chunks_mut(RHS_CHUNK))
+            .enumerate()
+            .for_each(|(c, ((xs, ys), zs))| {
+                for k in 0..xs.len() {
+                    let v = rhs(c * RHS_CHUNK + k);
+                    (xs[k], ys[k], zs[k]) = (v.x, v.y, v.z);
+                }
+            });
+        self.solve_columns(stack, buf, out);
     }
 
-    /// Stored entries of `L` strictly below the diagonal as used by the solves.
-    pub fn lower_entries(&self) -> usize {
-        self.triangular.entries()
-    }
-
-    /// The solve's schedule: independent groups, the fractions of the work in the sequential
-    /// top and in the largest group ([`TriangularFactor::schedule`]).
-    pub fn schedule(&self) -> (usize, f64, f64) {
-        self.triangular.schedule()
+    /// faer's solve of the three columns of `buf` (column-major, `n x 3`), written to `out`.
+    fn solve_columns(&self, stack: &mut MemBuffer, buf: &mut [f64], out: &mut [Vec3]) {
+        let n = self.n;
+        let llt = LltRef::<'_, usize, f64>::new(&self.symbolic, &self.factor);
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(buf, n, 3),
+            Par::Seq,
+            MemStack::new(stack),
+        );
+        for (i, v) in out.iter_mut().enumerate() {
+            *v = Vec3::new(buf[i], buf[n + i], buf[2 * n + i]);
+        }
     }
 
     /// The preconditioner `out = S (B^-1 (x) I3) S r`; returns `r . out`. Without a factor,
@@ -288,6 +248,9 @@ impl ScalarCholesky {
     }
 }
 
+/// Rows per parallel task when the right-hand side is evaluated.
+const RHS_CHUNK: usize = 1024;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -299,7 +262,7 @@ mod tests {
         /// On random sparse SPD matrices (a random graph, diagonally dominant values) with random
         /// fixed nodes, `solve3` matches a dense nalgebra solve of the same (eliminated) matrix.
         #[test]
-        fn solves_match_dense_lu(seed in 0u64..1000, n in 2usize..60) {
+        fn solves_match_dense_lu(seed in 0u64..1000, n in 2usize..30) {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
             let mut pairs = Vec::new();
             for i in 0..n as u32 {
@@ -338,14 +301,13 @@ mod tests {
             }
             let r: Vec<Vec3> = (0..n).map(|_| Vec3::new(rng.random(), rng.random(), rng.random())).collect();
             let lu = dense.clone().lu();
-            // faer's choice, both layouts forced, and the solve split into small groups.
-            let small = SplitParams { min_entries: 0, subtrees: 8, max_top: 0.5, groups: 3 };
-            for (threshold, split) in [
-                (SupernodalThreshold::AUTO, SplitParams::default()),
-                (SupernodalThreshold::FORCE_SIMPLICIAL, small),
-                (SupernodalThreshold::FORCE_SUPERNODAL, small),
+            // faer's choice and both layouts forced; `solve3` and `solve_with` agree.
+            for threshold in [
+                SupernodalThreshold::AUTO,
+                SupernodalThreshold::FORCE_SIMPLICIAL,
+                SupernodalThreshold::FORCE_SUPERNODAL,
             ] {
-                let mut chol = ScalarCholesky::with_params(&pattern, threshold, split).unwrap();
+                let mut chol = ScalarCholesky::with_threshold(&pattern, threshold).unwrap();
                 prop_assert!(chol.factor(&pattern, &values, &fixed));
                 let mut x = r.clone();
                 chol.solve3(&mut x);

@@ -33,7 +33,6 @@ pub mod report;
 pub mod rest;
 pub mod sparse;
 pub mod step;
-pub mod triangular;
 
 pub use collision::impact_zones::ZoneMotion;
 pub use obstacle::Obstacle;
