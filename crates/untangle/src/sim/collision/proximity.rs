@@ -134,7 +134,13 @@ pub fn screen_pair(
     // times h, and the distance at least the axis gap (a pair rejected here would be found
     // neither close nor active by its closest points either).
     let split = if vt { 1 } else { 2 };
-    let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
+    // The largest norm as the root of the largest squared norm (the square root is monotone
+    // and correctly rounded: the same value, one root instead of one per node).
+    let speed = |r: std::ops::Range<usize>| {
+        r.map(|k| vel[k].norm_squared())
+            .fold(0.0f64, f64::max)
+            .sqrt()
+    };
     let reach_max = (speed(0..split) + speed(split..4)) * h;
     let far = (2.0 * eps).max(eps + 2.0 * reach_max);
     let dormant_at = if lazy {
@@ -222,6 +228,27 @@ impl NearList {
                 self.nears.push(n);
             }
         }
+    }
+
+    /// An empty list with room for the verdicts of `candidates` pairs.
+    pub fn with_capacity(candidates: usize) -> NearList {
+        NearList {
+            slots: Vec::with_capacity(candidates),
+            nears: Vec::with_capacity(candidates / 2),
+        }
+    }
+
+    /// The lists of consecutive chunks of candidates, one after the other (as [`Self::append`]
+    /// of each in turn, each part copied once).
+    pub fn concat(parts: Vec<NearList>) -> NearList {
+        let mut all = NearList {
+            slots: Vec::with_capacity(parts.iter().map(|p| p.slots.len()).sum()),
+            nears: Vec::with_capacity(parts.iter().map(|p| p.nears.len()).sum()),
+        };
+        for p in parts {
+            all.append(p);
+        }
+        all
     }
 
     /// Appends another list (the next chunk of candidates).
@@ -327,9 +354,19 @@ fn sweeps(
     let mut moved = vec![false; v.len()];
     let mut impulsed = vec![false; near.nears.len()];
     let mut applied = 0;
+    // Only dormant and active pairs can ever receive an impulse (an inactive pair is skipped
+    // in every sweep, a far one is dropped): the sweeps visit those slots alone, in order.
+    let live: Vec<u32> = (0..near.slots.len() as u32)
+        .filter(|&s| match near.slots[s as usize].1 {
+            DORMANT => true,
+            FAR => false,
+            i => near.nears[i as usize].active,
+        })
+        .collect();
     for _ in 0..SWEEPS {
         let mut any = false;
-        for s in 0..near.slots.len() {
+        for &s in &live {
+            let s = s as usize;
             let (pair, mut index) = near.slots[s];
             if index == DORMANT {
                 let nodes = scene.nodes(pair);
