@@ -115,22 +115,14 @@ impl Bvh {
             self.order.len(),
             "refit with a different primitive count"
         );
-        for (slot, &p) in self.slot_aabbs.iter_mut().zip(&self.order) {
-            *slot = aabbs[p as usize];
-        }
-        for i in (0..self.nodes.len()).rev() {
-            let n = self.nodes[i];
-            let b = if n.is_leaf() {
-                self.slot_aabbs[n.start as usize..(n.start + n.count) as usize]
-                    .iter()
-                    .fold(Aabb::EMPTY, |a, b| a.union(b))
-            } else {
-                self.nodes[n.start as usize]
-                    .aabb
-                    .union(&self.nodes[n.right as usize].aabb)
-            };
-            self.nodes[i].aabb = b;
-            self.nodes[i].half_area = b.half_area();
+        use rayon::prelude::*;
+        self.slot_aabbs
+            .par_iter_mut()
+            .with_min_len(4096)
+            .zip(self.order.par_iter())
+            .for_each(|(slot, &p)| *slot = aabbs[p as usize]);
+        if !self.nodes.is_empty() {
+            refit_subtree(&mut self.nodes, 0, &self.slot_aabbs);
         }
     }
 
@@ -404,6 +396,37 @@ fn par_cutoff() -> u32 {
     } else {
         u32::MAX
     }
+}
+
+/// Refits the subtree whose nodes are `nodes` (pre-order, so a subtree is contiguous: its
+/// root, then the left subtree, then the right one; `offset` = global index of `nodes[0]`)
+/// from the slot boxes; returns its box. Large subtrees refit their halves in parallel (the
+/// same boxes for any thread count).
+fn refit_subtree(nodes: &mut [Node], offset: usize, slots: &[Aabb]) -> Aabb {
+    let n = nodes[0];
+    let b = if n.is_leaf() {
+        slots[n.start as usize..(n.start + n.count) as usize]
+            .iter()
+            .fold(Aabb::EMPTY, |a, b| a.union(b))
+    } else {
+        let (l, r) = (n.start as usize - offset, n.right as usize - offset);
+        let (left, right) = nodes[l..].split_at_mut(r - l);
+        let (bl, br) = if n.size >= 4 * PAR_CUTOFF {
+            rayon::join(
+                || refit_subtree(left, offset + l, slots),
+                || refit_subtree(right, offset + r, slots),
+            )
+        } else {
+            (
+                refit_subtree(left, offset + l, slots),
+                refit_subtree(right, offset + r, slots),
+            )
+        };
+        bl.union(&br)
+    };
+    nodes[0].aabb = b;
+    nodes[0].half_area = b.half_area();
+    b
 }
 
 /// [`Aabb::overlaps`] without short-circuiting (the six comparisons are cheaper than the

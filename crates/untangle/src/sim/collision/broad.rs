@@ -126,22 +126,34 @@ impl BroadPhase {
             return;
         }
         let touched = |nodes: &[u32]| nodes.iter().any(|&k| changed[k as usize]);
-        for (p, b) in self.vert_boxes.iter_mut().enumerate() {
-            if changed[p] {
-                *b = swept(scene, v, [p as u32], 0.0);
-            }
-        }
+        self.vert_boxes
+            .par_iter_mut()
+            .with_min_len(4096)
+            .enumerate()
+            .for_each(|(p, b)| {
+                if changed[p] {
+                    *b = swept(scene, v, [p as u32], 0.0);
+                }
+            });
         let vert = &self.vert_boxes;
-        for (t, b) in scene.triangles.iter().zip(self.tri_boxes.iter_mut()) {
-            if touched(t) {
-                *b = union_of(vert, t).inflated(margin);
-            }
-        }
-        for (e, b) in scene.edges.iter().zip(self.edge_boxes.iter_mut()) {
-            if touched(e) {
-                *b = union_of(vert, e).inflated(0.5 * margin);
-            }
-        }
+        self.tri_boxes
+            .par_iter_mut()
+            .with_min_len(4096)
+            .zip(scene.triangles.par_iter())
+            .for_each(|(b, t)| {
+                if touched(t) {
+                    *b = union_of(vert, t).inflated(margin);
+                }
+            });
+        self.edge_boxes
+            .par_iter_mut()
+            .with_min_len(4096)
+            .zip(scene.edges.par_iter())
+            .for_each(|(b, e)| {
+                if touched(e) {
+                    *b = union_of(vert, e).inflated(0.5 * margin);
+                }
+            });
         self.tri.refit(&self.tri_boxes);
         self.edge.refit(&self.edge_boxes);
         self.vert.refit(&self.vert_boxes);
