@@ -134,14 +134,17 @@ pub fn screen_pair(
     // times h, and the distance at least the axis gap (a pair rejected here would be found
     // neither close nor active by its closest points either).
     let split = if vt { 1 } else { 2 };
-    // The largest norm as the root of the largest squared norm (the square root is monotone
-    // and correctly rounded: the same value, one root instead of one per node).
-    let speed = |r: std::ops::Range<usize>| {
-        r.map(|k| vel[k].norm_squared())
-            .fold(0.0f64, f64::max)
-            .sqrt()
-    };
-    let reach_max = (speed(0..split) + speed(split..4)) * h;
+    // The largest node speed of each primitive, as the root of its largest squared speed (the
+    // square root is monotone and correctly rounded: the same value, one root per primitive).
+    let (mut sa, mut sb) = (0.0f64, 0.0f64);
+    for (k, w) in vel.iter().enumerate() {
+        if k < split {
+            sa = sa.max(w.norm_squared());
+        } else {
+            sb = sb.max(w.norm_squared());
+        }
+    }
+    let reach_max = (sa.sqrt() + sb.sqrt()) * h;
     let far = (2.0 * eps).max(eps + 2.0 * reach_max);
     let dormant_at = if lazy {
         dormant_distance(eps, rel, h)
@@ -354,19 +357,9 @@ fn sweeps(
     let mut moved = vec![false; v.len()];
     let mut impulsed = vec![false; near.nears.len()];
     let mut applied = 0;
-    // Only dormant and active pairs can ever receive an impulse (an inactive pair is skipped
-    // in every sweep, a far one is dropped): the sweeps visit those slots alone, in order.
-    let live: Vec<u32> = (0..near.slots.len() as u32)
-        .filter(|&s| match near.slots[s as usize].1 {
-            DORMANT => true,
-            FAR => false,
-            i => near.nears[i as usize].active,
-        })
-        .collect();
     for _ in 0..SWEEPS {
         let mut any = false;
-        for &s in &live {
-            let s = s as usize;
+        for s in 0..near.slots.len() {
             let (pair, mut index) = near.slots[s];
             if index == DORMANT {
                 let nodes = scene.nodes(pair);
