@@ -122,7 +122,8 @@ impl Bvh {
             .zip(self.order.par_iter())
             .for_each(|(slot, &p)| *slot = aabbs[p as usize]);
         if !self.nodes.is_empty() {
-            refit_subtree(&mut self.nodes, 0, &self.slot_aabbs);
+            let cutoff = par_cutoff().saturating_mul(4);
+            refit_subtree(&mut self.nodes, 0, &self.slot_aabbs, cutoff);
         }
     }
 
@@ -400,9 +401,9 @@ fn par_cutoff() -> u32 {
 
 /// Refits the subtree whose nodes are `nodes` (pre-order, so a subtree is contiguous: its
 /// root, then the left subtree, then the right one; `offset` = global index of `nodes[0]`)
-/// from the slot boxes; returns its box. Large subtrees refit their halves in parallel (the
-/// same boxes for any thread count).
-fn refit_subtree(nodes: &mut [Node], offset: usize, slots: &[Aabb]) -> Aabb {
+/// from the slot boxes; returns its box. Subtrees of at least `cutoff` primitives refit their
+/// halves in parallel (the same boxes for any thread count).
+fn refit_subtree(nodes: &mut [Node], offset: usize, slots: &[Aabb], cutoff: u32) -> Aabb {
     let n = nodes[0];
     let b = if n.is_leaf() {
         slots[n.start as usize..(n.start + n.count) as usize]
@@ -411,15 +412,15 @@ fn refit_subtree(nodes: &mut [Node], offset: usize, slots: &[Aabb]) -> Aabb {
     } else {
         let (l, r) = (n.start as usize - offset, n.right as usize - offset);
         let (left, right) = nodes[l..].split_at_mut(r - l);
-        let (bl, br) = if n.size >= 4 * PAR_CUTOFF {
+        let (bl, br) = if n.size >= cutoff {
             rayon::join(
-                || refit_subtree(left, offset + l, slots),
-                || refit_subtree(right, offset + r, slots),
+                || refit_subtree(left, offset + l, slots, cutoff),
+                || refit_subtree(right, offset + r, slots, cutoff),
             )
         } else {
             (
-                refit_subtree(left, offset + l, slots),
-                refit_subtree(right, offset + r, slots),
+                refit_subtree(left, offset + l, slots, cutoff),
+                refit_subtree(right, offset + r, slots, cutoff),
             )
         };
         bl.union(&br)

@@ -134,17 +134,8 @@ pub fn screen_pair(
     // times h, and the distance at least the axis gap (a pair rejected here would be found
     // neither close nor active by its closest points either).
     let split = if vt { 1 } else { 2 };
-    // The largest node speed of each primitive, as the root of its largest squared speed (the
-    // square root is monotone and correctly rounded: the same value, one root per primitive).
-    let (mut sa, mut sb) = (0.0f64, 0.0f64);
-    for (k, w) in vel.iter().enumerate() {
-        if k < split {
-            sa = sa.max(w.norm_squared());
-        } else {
-            sb = sb.max(w.norm_squared());
-        }
-    }
-    let reach_max = (sa.sqrt() + sb.sqrt()) * h;
+    let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
+    let reach_max = (speed(0..split) + speed(split..4)) * h;
     let far = (2.0 * eps).max(eps + 2.0 * reach_max);
     let dormant_at = if lazy {
         dormant_distance(eps, rel, h)
