@@ -153,11 +153,25 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
     // embedded too.
     let mut patch_of = vec![u32::MAX; tris.len()];
     let mut out = match broad {
-        BroadPhase::Sweep(sweep) => sweep.self_slot_pairs(visit),
+        // No patches: the fan pass does not wait for the pairs, so with several threads the two
+        // run side by side (concatenated in a fixed order, and sorted below anyway).
+        BroadPhase::Sweep(sweep) if rayon::current_num_threads() > 1 => {
+            let (mut out, fans) = rayon::join(
+                || sweep.self_slot_pairs(visit),
+                || fan_crossings(&ctx, has_obstacles, &patch_of),
+            );
+            out.extend(fans);
+            out
+        }
+        BroadPhase::Sweep(sweep) => {
+            let mut out = sweep.self_slot_pairs(visit);
+            out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
+            out
+        }
         BroadPhase::Hierarchy(bvh) => {
             let certifier = super::culling::PatchCertifier::new(tris, topo, pos, &planes, bvh);
             let certified = std::sync::Mutex::new(Vec::new());
-            let out = bvh.self_slot_pairs_culled(visit, |node, first, len| {
+            let mut out = bvh.self_slot_pairs_culled(visit, |node, first, len| {
                 let ok = certifier.embedded(node, first, len);
                 if ok {
                     certified
@@ -177,10 +191,10 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
                     patch_of[t as usize] = p as u32;
                 }
             }
+            out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
             out
         }
     };
-    out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
     // Sorted by (edge, triangle).
     crate::radix::sort_by_bucket_then_key(
         &mut out,
