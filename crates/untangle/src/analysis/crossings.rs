@@ -124,31 +124,12 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
         pos,
         planes: &planes,
     };
-    let visit = |sa: u32, sb: u32, out: &mut Vec<Crossing>| {
-        let (ta, tb) = (&slot_tris[sa as usize], &slot_tris[sb as usize]);
-        if shares_a_vertex(&ta.vertices, &tb.vertices) {
-            return; // shared vertex or edge: the fan pass decides
-        }
-        if ta.obstacle && tb.obstacle {
-            return;
-        }
-        match pair_crossings(&slot_prep[sa as usize], &slot_prep[sb as usize]) {
-            PairOutcome::Apart | PairOutcome::Crossings(0) => {}
-            PairOutcome::Crossings(mask) => {
-                push_owned_edges(ta, tb.id, mask & 7, out);
-                push_owned_edges(tb, ta.id, mask >> 3, out);
-            }
-            PairOutcome::Undecided { sides_a, sides_b } => ctx.pair_with_sides(
-                ta.id,
-                tb.id,
-                tris[ta.id as usize],
-                tris[tb.id as usize],
-                sides_a,
-                sides_b,
-                out,
-            ),
-        }
+    let pairs = SlotPairs {
+        tris: &slot_tris,
+        prep: &slot_prep,
+        ctx: &ctx,
     };
+    let visit = |sa: u32, sb: u32, out: &mut Vec<Crossing>| pairs.visit(sa, sb, out);
     // Triangles of a certified patch (hierarchy only): a fan entirely inside one patch is
     // embedded too.
     let mut patch_of = vec![u32::MAX; tris.len()];
@@ -203,6 +184,48 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
         |c| c.triangle,
     );
     out
+}
+
+/// The pair loop: the triangles in slot order and what the undecided pairs need.
+struct SlotPairs<'a> {
+    tris: &'a [SlotTriangle],
+    prep: &'a [PreparedTriangle],
+    ctx: &'a Ctx<'a>,
+}
+
+impl SlotPairs<'_> {
+    /// Crossings between the triangles in slots `sa` and `sb` (boxes overlapping), pushed to
+    /// `out`; pairs with a common vertex are left to the fan pass. Inlined into the broad
+    /// phase's loop (no call per pair); the rare undecided pairs go out of line.
+    #[inline(always)]
+    fn visit(&self, sa: u32, sb: u32, out: &mut Vec<Crossing>) {
+        let (ta, tb) = (&self.tris[sa as usize], &self.tris[sb as usize]);
+        if shares_a_vertex(&ta.vertices, &tb.vertices) {
+            return; // shared vertex or edge: the fan pass decides
+        }
+        if ta.obstacle && tb.obstacle {
+            return;
+        }
+        match pair_crossings(&self.prep[sa as usize], &self.prep[sb as usize]) {
+            PairOutcome::Apart | PairOutcome::Crossings(0) => {}
+            PairOutcome::Crossings(mask) => {
+                push_owned_edges(ta, tb.id, mask & 7, out);
+                push_owned_edges(tb, ta.id, mask >> 3, out);
+            }
+            PairOutcome::Undecided { sides_a, sides_b } => {
+                let tris = &self.ctx.mesh.triangles;
+                self.ctx.pair_with_sides(
+                    ta.id,
+                    tb.id,
+                    tris[ta.id as usize],
+                    tris[tb.id as usize],
+                    sides_a,
+                    sides_b,
+                    out,
+                )
+            }
+        }
+    }
 }
 
 /// What the pair loop reads of a triangle, in BVH slot order (contiguous for the traversal).
