@@ -8,6 +8,7 @@
 //! chunks in order, so the output is identical for any thread count.
 
 use crate::geom::Aabb;
+use std::cmp::Ordering;
 
 /// Boxes sorted by lower x bound, for self-overlap queries.
 #[derive(Clone, Debug, Default)]
@@ -112,7 +113,8 @@ impl SweepAndPrune {
                 let mut j = i + 1;
                 // Later boxes start no earlier: once one starts after box i ends, none of the
                 // rest reaches back to it.
-                while j < n && !(self.min_x[j] > max_x) {
+                // (`partial_cmp` rather than `<=`: a NaN bound does not stop the sweep.)
+                while j < n && self.min_x[j].partial_cmp(&max_x) != Some(Ordering::Greater) {
                     let mut m = self.overlap_pair(&probe, j);
                     while m != 0 {
                         let l = m.trailing_zeros() as usize;

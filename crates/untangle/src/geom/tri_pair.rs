@@ -351,7 +351,8 @@ fn orientations_scalar(
             let o = (rr[0] * c[0] + rr[1] * c[1]) + rr[2] * c[2];
             let bound = la * b.edge_l1[j];
             // NaN is never certified.
-            if !(o.abs() > bound) {
+            let certified = o.abs() > bound;
+            if !certified {
                 return None;
             }
             pos[x][y] = o > 0.0;
