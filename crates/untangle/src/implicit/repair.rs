@@ -1286,6 +1286,99 @@ mod tests {
         }
     }
 
+    /// Random small triangles in the unit cube, `sizes[o]` of them per object (own vertices).
+    fn soup(seed: u64, sizes: &[usize]) -> (Stack, Vec<Vec3>) {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut p = || Vec3::new(rng.random(), rng.random(), rng.random());
+        let (mut pos, mut tris, mut object_of, mut tri_start) = (vec![], vec![], vec![], vec![]);
+        for (o, &n) in sizes.iter().enumerate() {
+            tri_start.push(tris.len() as u32);
+            for _ in 0..n {
+                let c = p();
+                let v = pos.len() as u32;
+                for _ in 0..3 {
+                    pos.push(c + (p() - Vec3::repeat(0.5)) * 0.4);
+                }
+                tris.push([v, v + 1, v + 2]);
+                object_of.push(o as u32);
+            }
+        }
+        tri_start.push(tris.len() as u32);
+        let stack = Stack {
+            tris,
+            object_of,
+            tri_start,
+        };
+        (stack, pos)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        #[test]
+        fn object_pairs_match_brute_force(
+            seed in any::<u64>(), sizes in prop::collection::vec(0usize..40, 1..5),
+        ) {
+            let (stack, pos) = soup(seed, &sizes);
+            let nobj = stack.tri_start.len() - 1;
+            let bvhs: Vec<Bvh> = (0..nobj).map(|o| stack.object_bvh(o, &pos)).collect();
+            let got = stack.object_pairs(&pos, &bvhs);
+            // Oracle: every pair of triangles of different objects, exact test.
+            let n = stack.tris.len() as u32;
+            let mut want = Vec::new();
+            for a in 0..n {
+                for b in a + 1..n {
+                    if stack.object_of[a as usize] != stack.object_of[b as usize]
+                        && triangles_intersect(stack.tris[a as usize], stack.tris[b as usize], &pos)
+                    {
+                        want.push((a, b));
+                    }
+                }
+            }
+            prop_assert_eq!(got, want);
+        }
+
+        #[test]
+        fn dynamic_sets_find_every_overlapping_box(
+            seed in any::<u64>(), batches in prop::collection::vec(0usize..30, 1..12),
+        ) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let n: usize = batches.iter().sum::<usize>() + 5;
+            let random_box = |rng: &mut rand_chacha::ChaCha8Rng| {
+                let c = Vec3::new(rng.random(), rng.random(), rng.random());
+                let h = Vec3::new(rng.random(), rng.random(), rng.random()) * 0.1;
+                Aabb::from_points([c - h, c + h].iter())
+            };
+            let mut boxes: Vec<Aabb> = (0..n).map(|_| random_box(&mut rng)).collect();
+            let mut d = Dynamic::default();
+            let mut added: Vec<u32> = Vec::new();
+            let mut next = 0u32;
+            for &b in &batches {
+                let fresh: Vec<u32> = (next..next + b as u32).collect();
+                next += b as u32;
+                // Every member may have moved since the last round.
+                for &t in added.iter().chain(&fresh) {
+                    if rng.random_bool(0.5) {
+                        boxes[t as usize] = random_box(&mut rng);
+                    }
+                }
+                d.update(&fresh, &boxes);
+                added.extend_from_slice(&fresh);
+                let q = random_box(&mut rng);
+                let mut got: Vec<u32> = Vec::new();
+                for (ids, bvh) in d.parts() {
+                    bvh.query(&q, |i| got.push(ids[i as usize]));
+                }
+                got.sort_unstable();
+                let mut want: Vec<u32> =
+                    added.iter().copied().filter(|&t| boxes[t as usize].overlaps(&q)).collect();
+                want.sort_unstable();
+                prop_assert_eq!(got, want);
+            }
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(6))]
         #[test]
