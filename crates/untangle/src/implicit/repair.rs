@@ -106,6 +106,9 @@ pub struct PairRepair {
     pub vertices: usize,
     /// Pushed vertices that [`settle`] brought back part of the way (or all of it).
     pub settled: usize,
+    /// Crossing checks [`settle`] ran (one per round, plus one per cascade of vertices put
+    /// back).
+    pub settle_checks: usize,
     /// Wall time of the first (push) phase of [`repair`], ms (0 when run alone).
     pub push_ms: f64,
     /// Wall time of this phase within [`repair`], ms (0 when run alone).
@@ -140,6 +143,7 @@ fn crossing_triangles(
     below: &[(&[[u32; 3]], u32, &Bvh)],
 ) -> Vec<(usize, u32)> {
     cand.par_iter()
+        .with_min_len(64)
         .filter_map(|&k| {
             let k = k as usize;
             let ta = tris[k].map(|v| v + base);
@@ -334,7 +338,7 @@ pub fn repair(
     pairs.pairs_ms = t_pairs.elapsed().as_secs_f64() * 1e3;
     if pairs.remaining == 0 {
         let t_settle = Instant::now();
-        pairs.settled = settle_from(
+        (pairs.settled, pairs.settle_checks) = settle_from(
             layers,
             &mut pos,
             &starts,
@@ -435,11 +439,12 @@ pub fn settle(
     let bvhs: Vec<Bvh> = (0..stack.tri_start.len() - 1)
         .map(|o| stack.object_bvh(o, pos))
         .collect();
-    settle_from(layers, pos, starts, target, rounds, &stack, &bvhs)
+    settle_from(layers, pos, starts, target, rounds, &stack, &bvhs).0
 }
 
 /// [`settle`] on the triangles of `stack`, with one hierarchy per object over the boxes at
-/// `pos` (`bvhs`, e.g. those [`separate_pairs_from`] returns).
+/// `pos` (`bvhs`, e.g. those [`separate_pairs_from`] returns). Also returns the number of
+/// crossing checks run.
 fn settle_from(
     layers: &[RepairLayer],
     pos: &mut [Vec3],
@@ -448,7 +453,7 @@ fn settle_from(
     rounds: usize,
     stack: &Stack,
     bvhs: &[Bvh],
-) -> usize {
+) -> (usize, usize) {
     let nvg = target.len();
     // Pushes below a small fraction of the thickness rule are not worth taking back.
     let small: Vec<f64> = layers
@@ -462,8 +467,9 @@ fn settle_from(
         })
         .collect();
     if rounds == 0 || movable.is_empty() {
-        return 0;
+        return (0, 0);
     }
+    let mut checks = 0;
     let Stack {
         tris,
         object_of,
@@ -536,6 +542,7 @@ fn settle_from(
         let mut changed = movable.clone();
         let mut first = true;
         loop {
+            checks += 1;
             let (pos_ro, before_ro) = (&*pos, &before);
             let crossing = |ta: [u32; 3], tb: [u32; 3], p: &[Vec3]| {
                 may_intersect(ta, tb, p) && triangles_intersect(ta, tb, p)
@@ -549,7 +556,8 @@ fn settle_from(
             };
             let order = |a: u32, b: u32| (a.min(b), a.max(b));
             let mut pairs: Vec<(u32, u32)> = Vec::new();
-            if first {
+            // Many moving triangles: BVH against BVH; few: one query each.
+            if first && 4 * moving.len() >= movers.len() {
                 // Every triangle of a moved vertex against everything: BVH against BVH.
                 for (o, ob) in bvhs.iter().enumerate() {
                     let base = tri_start[o];
@@ -568,10 +576,17 @@ fn settle_from(
                 }));
                 first = false;
             } else {
-                // The triangles of the vertices put back: one query each.
-                let check = tris_of(&changed);
+                // The triangles of the moved vertices (first check) or of the vertices put
+                // back: one query each.
+                let check = if first {
+                    moving.clone()
+                } else {
+                    tris_of(&changed)
+                };
+                first = false;
                 pairs = check
                     .par_iter()
+                    .with_min_len(32)
                     .flat_map_iter(|&a| {
                         let ta = tris[a as usize];
                         let bbox = Aabb::from_points(ta.iter().map(|&v| &pos_ro[v as usize]));
@@ -626,7 +641,7 @@ fn settle_from(
             moving_now[t as usize] = false;
         }
     }
-    settled.iter().filter(|&&s| s).count()
+    (settled.iter().filter(|&&s| s).count(), checks)
 }
 
 /// The triangles of all garments (in layer order) and of the body, over the concatenated
@@ -891,6 +906,7 @@ fn separate_pairs_from(
         // Per pair: inner triangle, outer triangle, direction, shares.
         let moves: Vec<(usize, usize, Vec3, f64, f64)> = pairs
             .par_iter()
+            .with_min_len(32)
             .map(|&(a, b)| {
                 let (a, b) = (a as usize, b as usize);
                 let (lo, hi) = if rank(object_of[a] as usize) < rank(object_of[b] as usize) {
