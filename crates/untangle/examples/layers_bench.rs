@@ -169,6 +169,13 @@ fn main() {
                 c3 - c2,
                 (out.projection_ms + out.repair_ms) / 1e3
             );
+            let pr = &out.pair_repair;
+            eprintln!(
+                "  repair wall (s): push {:.3}, pairs {:.3}, settle {:.3}",
+                pr.push_ms / 1e3,
+                pr.pairs_ms / 1e3,
+                pr.settle_ms / 1e3
+            );
             if std::env::var_os("LAYERS_BENCH_VERBOSE").is_some() {
                 eprintln!(
                     "  per layer {:?}, self {}, projection {:.0} ms, repair {:.0} ms",

@@ -51,9 +51,46 @@ pub fn sort_by_bucket_then_key<T: Copy + Default>(
         sort_by_key(v, |x| ((bucket(x) as u64) << 32) | key(x) as u64);
         return;
     }
-    let mut tmp = vec![T::default(); v.len()];
-    counting_sort(v, &mut tmp, keys, &key);
+    let tmp = counting_sorted(v, keys, &key);
     counting_sort(&tmp, v, buckets, &bucket);
+}
+
+/// A vector of `n` elements, each written once by `fill` (no zeroing first: the large scatter
+/// buffers of the counting sorts are otherwise filled twice).
+///
+/// # Safety
+/// `fill` must initialise every one of the `n` elements of the slice it is given.
+pub(crate) unsafe fn written_once<T: Copy>(
+    n: usize,
+    fill: impl FnOnce(&mut [std::mem::MaybeUninit<T>]),
+) -> Vec<T> {
+    let mut v = Vec::with_capacity(n);
+    fill(&mut v.spare_capacity_mut()[..n]);
+    // SAFETY: the caller guarantees that `fill` initialised all `n` elements.
+    unsafe { v.set_len(n) };
+    v
+}
+
+/// Stable counting sort of `from` by `digit(x) < range` into a new vector.
+fn counting_sorted<T: Copy>(from: &[T], range: usize, digit: &impl Fn(&T) -> u32) -> Vec<T> {
+    let mut start = vec![0u32; range + 1];
+    for x in from {
+        start[digit(x) as usize + 1] += 1;
+    }
+    for i in 1..=range {
+        start[i] += start[i - 1];
+    }
+    // SAFETY: bucket `d` receives exactly its count of elements at the consecutive positions
+    // from its start, so the positions written are exactly `0..from.len()`, each once.
+    unsafe {
+        written_once(from.len(), |to| {
+            for x in from {
+                let d = digit(x) as usize;
+                to[start[d] as usize].write(*x);
+                start[d] += 1;
+            }
+        })
+    }
 }
 
 /// Stable counting sort of `from` into `to` by `digit(x) < range`.

@@ -12,7 +12,7 @@
 //! Only fans that fail this O(degree) certificate are tested pair by pair.
 
 use super::input::{AnalysisMesh, ObjectKind};
-use crate::broad::Bvh;
+use crate::broad::{Bvh, SweepAndPrune};
 use crate::geom::tri_pair::{pair_crossings, PairOutcome, PreparedTriangle};
 use crate::geom::tri_tri::{
     edge_crosses_triangle_filtered, edge_may_overlap_projected,
@@ -38,14 +38,52 @@ pub fn triangle_boxes(mesh: &AnalysisMesh, pos: &[Vec3]) -> Vec<Aabb> {
         .collect()
 }
 
+/// The broad phase of the crossing search, chosen by size: sweep and prune for small meshes (a
+/// dense tangle of a few hundred triangles: no tree to build or traverse), the hierarchy with
+/// patch culling otherwise. Both report every pair of overlapping triangle boxes, so the
+/// crossings are the same either way.
+#[derive(Clone, Debug)]
+pub enum BroadPhase {
+    /// Sweep and prune along x.
+    Sweep(SweepAndPrune),
+    /// Bounding volume hierarchy.
+    Hierarchy(Bvh),
+}
+
+/// Meshes with at most this many triangles may use the sweep...
+const SWEEP_MAX_TRIANGLES: usize = 1024;
+/// ...if it tests at most this many pairs per triangle (x intervals overlapping).
+const SWEEP_MAX_PAIRS_PER_TRIANGLE: usize = 128;
+
+impl BroadPhase {
+    /// The broad phase for triangle boxes `boxes`.
+    pub fn new(boxes: &[Aabb]) -> Self {
+        if boxes.len() <= SWEEP_MAX_TRIANGLES {
+            let s = SweepAndPrune::build(boxes);
+            if s.x_pairs() <= SWEEP_MAX_PAIRS_PER_TRIANGLE * boxes.len() {
+                return BroadPhase::Sweep(s);
+            }
+        }
+        BroadPhase::Hierarchy(Bvh::build(boxes))
+    }
+
+    /// The triangle in each slot (the order the pair callbacks index).
+    pub fn order(&self) -> &[u32] {
+        match self {
+            BroadPhase::Sweep(s) => s.order(),
+            BroadPhase::Hierarchy(b) => b.order(),
+        }
+    }
+}
+
 /// All crossings, sorted by `(edge, triangle)`. Obstacle-obstacle pairs are skipped.
-pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Crossing> {
+pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> Vec<Crossing> {
     let topo = &mesh.topology;
     let tris = &mesh.triangles;
     let has_obstacles = mesh.objects.iter().any(|o| o.kind == ObjectKind::Obstacle);
-    // Triangles in BVH slot order, prepared for the pair kernel: the traversal reads them from
+    // Triangles in slot order, prepared for the pair kernel: the traversal reads them from
     // contiguous memory.
-    let order = bvh.order();
+    let order = broad.order();
     let slot_prep: Vec<PreparedTriangle> = order
         .iter()
         .map(|&t| {
@@ -86,58 +124,58 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
         pos,
         planes: &planes,
     };
-    let certifier = super::culling::PatchCertifier::new(tris, topo, pos, &planes, bvh);
-    let certified = std::sync::Mutex::new(Vec::new());
-    let mut out = bvh.self_slot_pairs_culled(
-        |sa, sb, out: &mut Vec<Crossing>| {
-            let (ta, tb) = (&slot_tris[sa as usize], &slot_tris[sb as usize]);
-            if shares_a_vertex(&ta.vertices, &tb.vertices) {
-                return; // shared vertex or edge: the fan pass decides
-            }
-            if ta.obstacle && tb.obstacle {
-                return;
-            }
-            match pair_crossings(&slot_prep[sa as usize], &slot_prep[sb as usize]) {
-                PairOutcome::Apart | PairOutcome::Crossings(0) => {}
-                PairOutcome::Crossings(mask) => {
-                    push_owned_edges(ta, tb.id, mask & 7, out);
-                    push_owned_edges(tb, ta.id, mask >> 3, out);
-                }
-                PairOutcome::Undecided { sides_a, sides_b } => ctx.pair_with_sides(
-                    ta.id,
-                    tb.id,
-                    tris[ta.id as usize],
-                    tris[tb.id as usize],
-                    sides_a,
-                    sides_b,
-                    out,
-                ),
-            }
-        },
-        |node, first, len| {
-            let ok = certifier.embedded(node, first, len);
-            if ok {
-                certified
-                    .lock()
-                    .expect("no panics while held")
-                    .push((first, len));
-            }
-            ok
-        },
-    );
-    // Triangles of a certified patch: a fan entirely inside one patch is embedded too.
+    let pairs = SlotPairs {
+        tris: &slot_tris,
+        prep: &slot_prep,
+        ctx: &ctx,
+    };
+    let visit = |sa: u32, sb: u32, out: &mut Vec<Crossing>| pairs.visit(sa, sb, out);
+    // Triangles of a certified patch (hierarchy only): a fan entirely inside one patch is
+    // embedded too.
     let mut patch_of = vec![u32::MAX; tris.len()];
-    for (p, &(first, len)) in certified
-        .into_inner()
-        .expect("no panics while held")
-        .iter()
-        .enumerate()
-    {
-        for &t in &order[first as usize..(first + len) as usize] {
-            patch_of[t as usize] = p as u32;
+    let mut out = match broad {
+        // No patches: the fan pass does not wait for the pairs, so with several threads the two
+        // run side by side (concatenated in a fixed order, and sorted below anyway).
+        BroadPhase::Sweep(sweep) if rayon::current_num_threads() > 1 => {
+            let (mut out, fans) = rayon::join(
+                || sweep.self_slot_pairs(visit),
+                || fan_crossings(&ctx, has_obstacles, &patch_of),
+            );
+            out.extend(fans);
+            out
         }
-    }
-    out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
+        BroadPhase::Sweep(sweep) => {
+            let mut out = sweep.self_slot_pairs(visit);
+            out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
+            out
+        }
+        BroadPhase::Hierarchy(bvh) => {
+            let certifier = super::culling::PatchCertifier::new(tris, topo, pos, &planes, bvh);
+            let certified = std::sync::Mutex::new(Vec::new());
+            let mut out = bvh.self_slot_pairs_culled(visit, |node, first, len| {
+                let ok = certifier.embedded(node, first, len);
+                if ok {
+                    certified
+                        .lock()
+                        .expect("no panics while held")
+                        .push((first, len));
+                }
+                ok
+            });
+            for (p, &(first, len)) in certified
+                .into_inner()
+                .expect("no panics while held")
+                .iter()
+                .enumerate()
+            {
+                for &t in &order[first as usize..(first + len) as usize] {
+                    patch_of[t as usize] = p as u32;
+                }
+            }
+            out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
+            out
+        }
+    };
     // Sorted by (edge, triangle).
     crate::radix::sort_by_bucket_then_key(
         &mut out,
@@ -146,6 +184,48 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], bvh: &Bvh) -> Vec<Cross
         |c| c.triangle,
     );
     out
+}
+
+/// The pair loop: the triangles in slot order and what the undecided pairs need.
+struct SlotPairs<'a> {
+    tris: &'a [SlotTriangle],
+    prep: &'a [PreparedTriangle],
+    ctx: &'a Ctx<'a>,
+}
+
+impl SlotPairs<'_> {
+    /// Crossings between the triangles in slots `sa` and `sb` (boxes overlapping), pushed to
+    /// `out`; pairs with a common vertex are left to the fan pass. Inlined into the broad
+    /// phase's loop (no call per pair); the rare undecided pairs go out of line.
+    #[inline(always)]
+    fn visit(&self, sa: u32, sb: u32, out: &mut Vec<Crossing>) {
+        let (ta, tb) = (&self.tris[sa as usize], &self.tris[sb as usize]);
+        if shares_a_vertex(&ta.vertices, &tb.vertices) {
+            return; // shared vertex or edge: the fan pass decides
+        }
+        if ta.obstacle && tb.obstacle {
+            return;
+        }
+        match pair_crossings(&self.prep[sa as usize], &self.prep[sb as usize]) {
+            PairOutcome::Apart | PairOutcome::Crossings(0) => {}
+            PairOutcome::Crossings(mask) => {
+                push_owned_edges(ta, tb.id, mask & 7, out);
+                push_owned_edges(tb, ta.id, mask >> 3, out);
+            }
+            PairOutcome::Undecided { sides_a, sides_b } => {
+                let tris = &self.ctx.mesh.triangles;
+                self.ctx.pair_with_sides(
+                    ta.id,
+                    tb.id,
+                    tris[ta.id as usize],
+                    tris[tb.id as usize],
+                    sides_a,
+                    sides_b,
+                    out,
+                )
+            }
+        }
+    }
 }
 
 /// What the pair loop reads of a triangle, in BVH slot order (contiguous for the traversal).

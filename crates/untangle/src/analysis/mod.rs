@@ -22,7 +22,6 @@ pub use paths::{EndKind, Path, PathKind, Tanglement};
 pub use regions::Region;
 pub use segments::{End, Inconsistency, Segment};
 
-use crate::broad::Bvh;
 use crate::geom::Vec3;
 use std::time::Instant;
 
@@ -99,9 +98,9 @@ pub fn analyze_with(
 ) -> Result<Analysis, Inconsistency> {
     let t0 = Instant::now();
     let boxes = crossings::triangle_boxes(mesh, pos);
-    let bvh = Bvh::build(&boxes);
+    let broad = crossings::BroadPhase::new(&boxes);
     let t1 = Instant::now();
-    let crossings = crossings::find_crossings(mesh, pos, &bvh);
+    let crossings = crossings::find_crossings(mesh, pos, &broad);
     let t2 = Instant::now();
     let segs = segments::build_segments(mesh, &crossings)?;
     let (paths, tanglements) = paths::trace_paths(mesh, &crossings, &segs)?;

@@ -136,29 +136,39 @@ fn entries_by_pair(mesh: &AnalysisMesh, crossings: &[Crossing]) -> Vec<[u32; 3]>
     for h in 1..=nt {
         start[h] += start[h - 1];
     }
-    let mut by_hi = vec![[0u32; 2]; n];
     let mut lo_start = vec![0u32; nt + 1];
-    for_each_entry(mesh, crossings, |lo, hi, c| {
-        let s = &mut start[hi as usize];
-        by_hi[*s as usize] = [lo, c];
-        *s += 1;
-        lo_start[lo as usize + 1] += 1;
-    });
+    // SAFETY: the entries are the same as in the histogram pass above (same crossings, same
+    // order), so bucket `hi` receives exactly its count at the consecutive positions from its
+    // start: every position of `0..n` is written once.
+    let by_hi: Vec<[u32; 2]> = unsafe {
+        crate::radix::written_once(n, |by_hi| {
+            for_each_entry(mesh, crossings, |lo, hi, c| {
+                let s = &mut start[hi as usize];
+                by_hi[*s as usize].write([lo, c]);
+                *s += 1;
+                lo_start[lo as usize + 1] += 1;
+            })
+        })
+    };
     for t in 1..=nt {
         lo_start[t] += lo_start[t - 1];
     }
     // Stable counting sort by the lower triangle; `start[h]` is now the end of bucket `h`.
-    let mut out = vec![[0u32; 3]; n];
-    let mut begin = 0;
-    for (hi, &end) in start[..nt].iter().enumerate() {
-        for &[lo, c] in &by_hi[begin as usize..end as usize] {
-            let s = &mut lo_start[lo as usize];
-            out[*s as usize] = [lo, hi as u32, c];
-            *s += 1;
-        }
-        begin = end;
+    // SAFETY: `lo_start` holds the bucket starts of the histogram of the lower triangles of
+    // all `n` entries of `by_hi`, each visited once: every position of `0..n` is written once.
+    unsafe {
+        crate::radix::written_once(n, |out| {
+            let mut begin = 0;
+            for (hi, &end) in start[..nt].iter().enumerate() {
+                for &[lo, c] in &by_hi[begin as usize..end as usize] {
+                    let s = &mut lo_start[lo as usize];
+                    out[*s as usize].write([lo, hi as u32, c]);
+                    *s += 1;
+                }
+                begin = end;
+            }
+        })
     }
-    out
 }
 
 #[cfg(test)]

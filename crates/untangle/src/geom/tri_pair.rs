@@ -98,6 +98,14 @@ impl PreparedTriangle {
     }
 }
 
+/// The L1 radius of a pair: every corner difference is bounded in L1 by the two reaches plus
+/// the distance of the first corners.
+#[inline(always)]
+fn pair_reach(a: &PreparedTriangle, b: &PreparedTriangle) -> Real {
+    let d0 = Vec3::new(a.x[0] - b.x[0], a.y[0] - b.y[0], a.z[0] - b.z[0]);
+    a.reach + b.reach + l1(&d0)
+}
+
 /// Certified sides of `p`'s corners with respect to `plane`'s plane, with `|p_i - c0|_1 <= r`,
 /// as two bit masks: bit `i` of the first = corner `i` certainly on the positive side, of the
 /// second = certainly on the negative side. Each side is `n.x (x - o.x) + n.y (y - o.y) + n.z (z - o.z)`, rounded the
@@ -189,9 +197,7 @@ const STRADDLING: [[usize; 2]; 7] = [[0, 0], [2, 0], [0, 1], [1, 2], [1, 2], [0,
 /// [`super::predicates::orient3d_sos`] (certified values are non-zero).
 #[inline]
 pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome {
-    // Every corner difference is bounded in L1 by the reaches plus the distance of the c0s.
-    let d0 = Vec3::new(a.x[0] - b.x[0], a.y[0] - b.y[0], a.z[0] - b.z[0]);
-    let r = a.reach + b.reach + l1(&d0);
+    let r = pair_reach(a, b);
     let ma = side_masks(a, b, r);
     if ma.0 == 7 || ma.1 == 7 {
         return PairOutcome::Apart;
@@ -207,34 +213,12 @@ pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome
         };
     }
     let (ia, ib) = (STRADDLING[ma.0 as usize], STRADDLING[mb.0 as usize]);
-    const NEXT: [usize; 3] = [1, 2, 0];
-    let edge = |t: &PreparedTriangle, i: usize| {
-        let j = NEXT[i];
-        Vec3::new(t.x[j] - t.x[i], t.y[j] - t.y[i], t.z[j] - t.z[i])
+    let Some(pos) = orientations(a, b, ia, ib, r) else {
+        return PairOutcome::Undecided {
+            sides_a: signs(ma),
+            sides_b: signs(mb),
+        };
     };
-    let ea = [edge(a, ia[0]), edge(a, ia[1])];
-    let eb = [edge(b, ib[0]), edge(b, ib[1])];
-    // o[x][y]: orientation of a's straddling edge x with b's straddling edge y,
-    // det[q - p, s - p, t - p] for a's edge (p, q) and b's edge (s, t).
-    let mut pos = [[false; 2]; 2];
-    for x in 0..2 {
-        let (px, py, pz) = (a.x[ia[x]], a.y[ia[x]], a.z[ia[x]]);
-        for y in 0..2 {
-            let j = ib[y];
-            let rr = Vec3::new(b.x[j] - px, b.y[j] - py, b.z[j] - pz);
-            let o = rr.dot(&eb[y].cross(&ea[x]));
-            let bound = EPS * r * a.edge_l1[ia[x]] * b.edge_l1[j];
-            // NaN is never certified.
-            let certified = o.abs() > bound;
-            if !certified {
-                return PairOutcome::Undecided {
-                    sides_a: signs(ma),
-                    sides_b: signs(mb),
-                };
-            }
-            pos[x][y] = o > 0.0;
-        }
-    }
     let mut mask = 0u8;
     for x in 0..2 {
         mask |= ((pos[x][0] == pos[x][1]) as u8) << ia[x];
@@ -243,6 +227,138 @@ pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome
         mask |= ((pos[0][y] == pos[1][y]) as u8) << (3 + ib[y]);
     }
     PairOutcome::Crossings(mask)
+}
+
+/// Next corner of each corner.
+const NEXT: [usize; 3] = [1, 2, 0];
+
+/// The four certified edge-edge orientations of a straddling pair: `o[x][y]` is whether
+/// `det[q - p, s - p, t - p] > 0` for `a`'s straddling edge `ia[x]` = `(p, q)` and `b`'s
+/// straddling edge `ib[y]` = `(s, t)`; `None` when one of them is within its error bound
+/// `EPS r |q - p|_1 |t - s|_1` (or NaN). Two lanes (`y = 0, 1`) at a time with SSE2 (the x86-64
+/// baseline), the same operations in the same order as the scalar reference below.
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+#[inline(always)]
+fn orientations(
+    a: &PreparedTriangle,
+    b: &PreparedTriangle,
+    ia: [usize; 2],
+    ib: [usize; 2],
+    r: Real,
+) -> Option<[[bool; 2]; 2]> {
+    use std::arch::x86_64::*;
+    let (j0, j1) = (ib[0], ib[1]);
+    let (n0, n1) = (NEXT[j0], NEXT[j1]);
+    let ca = |i: usize| (a.x[i], a.y[i], a.z[i]);
+    let ea = |i: usize| {
+        let n = NEXT[i];
+        (a.x[n] - a.x[i], a.y[n] - a.y[i], a.z[n] - a.z[i])
+    };
+    let er = EPS * r;
+    let (la0, la1) = (er * a.edge_l1[ia[0]], er * a.edge_l1[ia[1]]);
+    let (ea0, ea1, p0, p1) = (ea(ia[0]), ea(ia[1]), ca(ia[0]), ca(ia[1]));
+    // SAFETY: SSE2 is enabled at compile time (the cfg above); only register operations.
+    let bits = unsafe {
+        // Lane y holds b's straddling edge ib[y]: start s, direction t - s, L1 length.
+        let lanes = |v: &[Real; 4], i: usize, k: usize| _mm_set_pd(v[k], v[i]);
+        let (sx, sy, sz) = (
+            lanes(&b.x, j0, j1),
+            lanes(&b.y, j0, j1),
+            lanes(&b.z, j0, j1),
+        );
+        let (ebx, eby, ebz) = (
+            _mm_sub_pd(lanes(&b.x, n0, n1), sx),
+            _mm_sub_pd(lanes(&b.y, n0, n1), sy),
+            _mm_sub_pd(lanes(&b.z, n0, n1), sz),
+        );
+        let lb = _mm_set_pd(b.edge_l1[j1], b.edge_l1[j0]);
+        let sign = _mm_set1_pd(-0.0);
+        let zero = _mm_setzero_pd();
+        let row = |(ex, ey, ez): (Real, Real, Real), (px, py, pz): (Real, Real, Real), la: Real| {
+            let (eax, eay, eaz) = (_mm_set1_pd(ex), _mm_set1_pd(ey), _mm_set1_pd(ez));
+            let (rx, ry, rz) = (
+                _mm_sub_pd(sx, _mm_set1_pd(px)),
+                _mm_sub_pd(sy, _mm_set1_pd(py)),
+                _mm_sub_pd(sz, _mm_set1_pd(pz)),
+            );
+            // (t - s) x (q - p), then dotted with s - p.
+            let cx = _mm_sub_pd(_mm_mul_pd(eby, eaz), _mm_mul_pd(ebz, eay));
+            let cy = _mm_sub_pd(_mm_mul_pd(ebz, eax), _mm_mul_pd(ebx, eaz));
+            let cz = _mm_sub_pd(_mm_mul_pd(ebx, eay), _mm_mul_pd(eby, eax));
+            let o = _mm_add_pd(
+                _mm_add_pd(_mm_mul_pd(rx, cx), _mm_mul_pd(ry, cy)),
+                _mm_mul_pd(rz, cz),
+            );
+            let bound = _mm_mul_pd(_mm_set1_pd(la), lb);
+            // Ordered comparison: NaN is never certified.
+            let certified = _mm_movemask_pd(_mm_cmpgt_pd(_mm_andnot_pd(sign, o), bound));
+            let positive = _mm_movemask_pd(_mm_cmpgt_pd(o, zero));
+            (certified, positive)
+        };
+        let (c0, s0) = row(ea0, p0, la0);
+        let (c1, s1) = row(ea1, p1, la1);
+        (c0 & c1, s0 | s1 << 2)
+    };
+    if bits.0 != 3 {
+        return None;
+    }
+    let s = bits.1;
+    Some([[s & 1 != 0, s & 2 != 0], [s & 4 != 0, s & 8 != 0]])
+}
+
+/// Portable version of [`orientations`].
+#[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+#[inline(always)]
+fn orientations(
+    a: &PreparedTriangle,
+    b: &PreparedTriangle,
+    ia: [usize; 2],
+    ib: [usize; 2],
+    r: Real,
+) -> Option<[[bool; 2]; 2]> {
+    orientations_scalar(a, b, ia, ib, r)
+}
+
+/// The orientations one at a time (the reference for the SSE2 version).
+#[cfg(any(test, not(all(target_arch = "x86_64", target_feature = "sse2"))))]
+#[inline(always)]
+fn orientations_scalar(
+    a: &PreparedTriangle,
+    b: &PreparedTriangle,
+    ia: [usize; 2],
+    ib: [usize; 2],
+    r: Real,
+) -> Option<[[bool; 2]; 2]> {
+    let edge = |t: &PreparedTriangle, i: usize| {
+        let j = NEXT[i];
+        [t.x[j] - t.x[i], t.y[j] - t.y[i], t.z[j] - t.z[i]]
+    };
+    let er = EPS * r;
+    let mut pos = [[false; 2]; 2];
+    for x in 0..2 {
+        let i = ia[x];
+        let (ea, p) = (edge(a, i), [a.x[i], a.y[i], a.z[i]]);
+        let la = er * a.edge_l1[i];
+        for y in 0..2 {
+            let j = ib[y];
+            let eb = edge(b, j);
+            let rr = [b.x[j] - p[0], b.y[j] - p[1], b.z[j] - p[2]];
+            let c = [
+                eb[1] * ea[2] - eb[2] * ea[1],
+                eb[2] * ea[0] - eb[0] * ea[2],
+                eb[0] * ea[1] - eb[1] * ea[0],
+            ];
+            let o = (rr[0] * c[0] + rr[1] * c[1]) + rr[2] * c[2];
+            let bound = la * b.edge_l1[j];
+            // NaN is never certified.
+            let certified = o.abs() > bound;
+            if !certified {
+                return None;
+            }
+            pos[x][y] = o > 0.0;
+        }
+    }
+    Some(pos)
 }
 
 #[cfg(test)]
@@ -300,6 +416,16 @@ mod tests {
             a.plane().normal(),
             CertifiedPlane::new(&p[0], &p[1], &p[2]).normal()
         );
+        // The SSE2 orientations equal the scalar ones, for every pair of edge pairs.
+        for ia in [[0, 1], [1, 2], [2, 0]] {
+            for ib in [[0, 1], [1, 2], [2, 0]] {
+                let r = pair_reach(&a, &b);
+                prop_assert_eq!(
+                    orientations(&a, &b, ia, ib, r),
+                    orientations_scalar(&a, &b, ia, ib, r)
+                );
+            }
+        }
         let exact = exact_mask(p);
         match pair_crossings(&a, &b) {
             PairOutcome::Apart => prop_assert_eq!(exact, 0),

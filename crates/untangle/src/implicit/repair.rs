@@ -35,6 +35,7 @@ use crate::geom::tri_tri::{edge_crosses_triangle, triangles_intersect, triangles
 use crate::geom::{Aabb, Vec3};
 use crate::mesh::{Mesh, Topology};
 use rayon::prelude::*;
+use std::time::Instant;
 
 /// Parameters of [`repair`].
 #[derive(Clone, Debug)]
@@ -105,6 +106,15 @@ pub struct PairRepair {
     pub vertices: usize,
     /// Pushed vertices that [`settle`] brought back part of the way (or all of it).
     pub settled: usize,
+    /// Crossing checks [`settle`] ran (one per round, plus one per cascade of vertices put
+    /// back).
+    pub settle_checks: usize,
+    /// Wall time of the first (push) phase of [`repair`], ms (0 when run alone).
+    pub push_ms: f64,
+    /// Wall time of this phase within [`repair`], ms (0 when run alone).
+    pub pairs_ms: f64,
+    /// Wall time of [`settle`] within [`repair`], ms (0 when it did not run).
+    pub settle_ms: f64,
 }
 
 /// One garment of the repair: its mesh, current positions, topology and thickness rule to the
@@ -122,46 +132,52 @@ pub struct RepairLayer<'a> {
     pub separation: f64,
 }
 
-/// Triangles of `tris` (ids offset by `base` in `pos`) crossing a triangle of `others` (ids in
-/// `pos`, boxes in `bvh`): per crossing triangle, the bit set of the objects it crosses.
+/// The triangles `cand` of `tris` (ids offset by `base` in `pos`) crossing a triangle of the
+/// objects `below` (each: its triangles with ids in `pos`, its bit, and a hierarchy over its
+/// boxes): per crossing triangle, the bit set of the objects it crosses.
 fn crossing_triangles(
     tris: &[[u32; 3]],
+    cand: &[u32],
     base: u32,
     pos: &[Vec3],
-    others: &[[u32; 3]],
-    object_of: &[u32],
-    bvh: &Bvh,
+    below: &[(&[[u32; 3]], u32, &Bvh)],
 ) -> Vec<(usize, u32)> {
-    tris.par_iter()
-        .enumerate()
-        .filter_map(|(k, t)| {
-            let ta = t.map(|v| v + base);
+    cand.par_iter()
+        .with_min_len(64)
+        .filter_map(|&k| {
+            let k = k as usize;
+            let ta = tris[k].map(|v| v + base);
             let pa = ta.map(|v| pos[v as usize]);
             let bbox = Aabb::from_points(pa.iter());
             let mut hit = 0u32;
-            bvh.query(&bbox, |u| {
-                let tb = others[u as usize];
-                let pb = tb.map(|v| pos[v as usize]);
-                if !triangles_may_intersect(&pa, &pb) {
-                    return;
-                }
-                let cross = |x: [u32; 3], y: [u32; 3]| {
-                    (0..3).any(|e| {
-                        let (i, j) = (x[e], x[(e + 1) % 3]);
-                        edge_crosses_triangle(
-                            &pos[i as usize],
-                            &pos[j as usize],
-                            &pos[y[0] as usize],
-                            &pos[y[1] as usize],
-                            &pos[y[2] as usize],
-                            [i, j, y[0], y[1], y[2]],
-                        )
-                    })
-                };
-                if cross(ta, tb) || cross(tb, ta) {
-                    hit |= 1 << object_of[u as usize];
-                }
-            });
+            for &(others, bit, bvh) in below {
+                bvh.query(&bbox, |u| {
+                    if hit & bit != 0 {
+                        return;
+                    }
+                    let tb = others[u as usize];
+                    let pb = tb.map(|v| pos[v as usize]);
+                    if !triangles_may_intersect(&pa, &pb) {
+                        return;
+                    }
+                    let cross = |x: [u32; 3], y: [u32; 3]| {
+                        (0..3).any(|e| {
+                            let (i, j) = (x[e], x[(e + 1) % 3]);
+                            edge_crosses_triangle(
+                                &pos[i as usize],
+                                &pos[j as usize],
+                                &pos[y[0] as usize],
+                                &pos[y[1] as usize],
+                                &pos[y[2] as usize],
+                                [i, j, y[0], y[1], y[2]],
+                            )
+                        })
+                    };
+                    if cross(ta, tb) || cross(tb, ta) {
+                        hit |= bit;
+                    }
+                });
+            }
             (hit != 0).then_some((k, hit))
         })
         .collect()
@@ -191,50 +207,44 @@ pub fn repair(
     }
     let mut reports = vec![LayerRepair::default(); ng];
     let rings = bump_rings(layers, params);
+    let stack = Stack::new(body.map(|b| b.0), layers, &starts, body_start as usize);
+    let nobj = stack.tri_start.len() - 1;
+    // One hierarchy per object (garments in order, then the body), built when the object is
+    // final for the first phase: the body at once, garment `j` after its own push steps (the
+    // first phase moves only the layer it repairs). The symmetric phase starts from them.
+    let mut bvhs: Vec<Option<Bvh>> = (0..nobj).map(|_| None).collect();
+    let t_push = Instant::now();
     for k in 0..ng {
         if params.steps == 0 {
             break;
         }
-        // The layers below: body (object 0) and garments 0..k (objects 1..=k).
-        let mut others: Vec<[u32; 3]> = Vec::new();
-        let mut object_of: Vec<u32> = Vec::new();
-        if let Some((b, _)) = body {
-            others.extend(b.triangles.iter().map(|t| t.map(|v| v + body_start)));
-            object_of.resize(others.len(), 0);
-        }
-        for j in 0..k {
-            others.extend(
-                layers[j]
-                    .mesh
-                    .triangles
-                    .iter()
-                    .map(|t| t.map(|v| v + starts[j])),
-            );
-            object_of.resize(others.len(), j as u32 + 1);
-        }
-        if others.is_empty() {
+        // The layers below: body (bit 0) and garments 0..k (bits 1..=k).
+        let below_objects: Vec<(usize, u32)> = (ng < nobj)
+            .then_some((ng, 1u32))
+            .into_iter()
+            .chain((0..k).map(|j| (j, 1u32 << (j + 1))))
+            .collect();
+        if below_objects.is_empty() {
             continue;
         }
-        let boxes: Vec<Aabb> = others
+        for &(o, _) in &below_objects {
+            if bvhs[o].is_none() {
+                bvhs[o] = Some(stack.object_bvh(o, &pos));
+            }
+        }
+        let below: Vec<(&[[u32; 3]], u32, &Bvh)> = below_objects
             .iter()
-            .map(|t| Aabb::from_points(t.iter().map(|&v| &pos[v as usize])))
+            .map(|&(o, bit)| (stack.object(o), bit, bvhs[o].as_ref().unwrap()))
             .collect();
-        let bvh = Bvh::build(&boxes);
         let layer = &layers[k];
         let nv = layer.mesh.positions.len();
         let base = starts[k] as usize;
         let step = (params.step * layer.separation).max(params.min_step);
         let mut total = vec![0.0f64; nv];
         let rep = &mut reports[k];
+        let mut cand: Vec<u32> = (0..layer.mesh.triangles.len() as u32).collect();
         for it in 0..=params.steps {
-            let hits = crossing_triangles(
-                &layer.mesh.triangles,
-                starts[k],
-                &pos,
-                &others,
-                &object_of,
-                &bvh,
-            );
+            let hits = crossing_triangles(&layer.mesh.triangles, &cand, starts[k], &pos, &below);
             if it == 0 {
                 rep.crossing_triangles = hits.len();
             }
@@ -295,28 +305,49 @@ pub fn repair(
                 disp[v] = dir[v] * step;
                 set[v] = true;
             }
-            spread(layer.topo, &mut disp, &mut set, seeds, rings[k]);
+            let reached = spread(layer.topo, &mut disp, &mut set, seeds, rings[k]);
             for v in 0..nv {
                 if set[v] {
                     pos[base + v] += disp[v];
                     total[v] += disp[v].norm();
                 }
             }
+            // The layers below do not move: only a triangle that moved can cross them next.
+            cand.clear();
+            for &v in &reached {
+                cand.extend_from_slice(layer.topo.vertex_triangles.row(v));
+            }
+            cand.sort_unstable();
+            cand.dedup();
         }
         rep.vertices = total.iter().filter(|&&x| x > 0.0).count();
         rep.max_push = total.iter().copied().fold(0.0, f64::max);
     }
+    let push_ms = t_push.elapsed().as_secs_f64() * 1e3;
+    let bvhs: Vec<Bvh> = bvhs
+        .into_iter()
+        .enumerate()
+        .map(|(o, b)| b.unwrap_or_else(|| stack.object_bvh(o, &pos)))
+        .collect();
     let target: Vec<Vec3> = positions.iter().flatten().copied().collect();
-    let mut pairs = separate_pairs(body, layers, &mut pos, &starts, &rings, params);
+    let t_pairs = Instant::now();
+    let (mut pairs, bvhs) = separate_pairs_from(
+        body, layers, &mut pos, &starts, &rings, params, &stack, bvhs,
+    );
+    pairs.push_ms = push_ms;
+    pairs.pairs_ms = t_pairs.elapsed().as_secs_f64() * 1e3;
     if pairs.remaining == 0 {
-        pairs.settled = settle(
-            body,
+        let t_settle = Instant::now();
+        (pairs.settled, pairs.settle_checks) = settle_from(
             layers,
             &mut pos,
             &starts,
             &target,
             params.settle_rounds,
+            &stack,
+            &bvhs,
         );
+        pairs.settle_ms = t_settle.elapsed().as_secs_f64() * 1e3;
     }
     for (k, l) in layers.iter().enumerate() {
         let base = starts[k] as usize;
@@ -378,46 +409,6 @@ fn spread(
     reached
 }
 
-/// Global triangle ids of the crossing pairs (`a < b`) between different objects among the
-/// triangles `only` (all when `None`) and all others.
-fn object_pairs(
-    tris: &[[u32; 3]],
-    object_of: &[u32],
-    pos: &[Vec3],
-    bvh: &Bvh,
-    only: Option<&[u32]>,
-) -> Vec<(u32, u32)> {
-    let test = |a: u32, b: u32| {
-        let (ta, tb) = (tris[a as usize], tris[b as usize]);
-        object_of[a as usize] != object_of[b as usize]
-            && triangles_may_intersect(&ta.map(|v| pos[v as usize]), &tb.map(|v| pos[v as usize]))
-            && triangles_intersect(ta, tb, pos)
-    };
-    let mut pairs: Vec<(u32, u32)> = match only {
-        None => bvh.self_pairs(|a, b, out| {
-            if test(a, b) {
-                out.push((a.min(b), a.max(b)));
-            }
-        }),
-        Some(ts) => ts
-            .par_iter()
-            .flat_map_iter(|&a| {
-                let bbox = Aabb::from_points(tris[a as usize].iter().map(|&v| &pos[v as usize]));
-                let mut out = Vec::new();
-                bvh.query(&bbox, |b| {
-                    if b != a && test(a, b) {
-                        out.push((a.min(b), a.max(b)));
-                    }
-                });
-                out
-            })
-            .collect(),
-    };
-    pairs.sort_unstable();
-    pairs.dedup();
-    pairs
-}
-
 /// Smallest fraction of the way back that [`settle`] tries for a vertex.
 const MIN_SETTLE_FRACTION: f64 = 1.0 / 16.0;
 
@@ -444,6 +435,25 @@ pub fn settle(
     target: &[Vec3],
     rounds: usize,
 ) -> usize {
+    let stack = Stack::new(body.map(|b| b.0), layers, starts, target.len());
+    let bvhs: Vec<Bvh> = (0..stack.tri_start.len() - 1)
+        .map(|o| stack.object_bvh(o, pos))
+        .collect();
+    settle_from(layers, pos, starts, target, rounds, &stack, &bvhs).0
+}
+
+/// [`settle`] on the triangles of `stack`, with one hierarchy per object over the boxes at
+/// `pos` (`bvhs`, e.g. those [`separate_pairs_from`] returns). Also returns the number of
+/// crossing checks run.
+fn settle_from(
+    layers: &[RepairLayer],
+    pos: &mut [Vec3],
+    starts: &[u32],
+    target: &[Vec3],
+    rounds: usize,
+    stack: &Stack,
+    bvhs: &[Bvh],
+) -> (usize, usize) {
     let nvg = target.len();
     // Pushes below a small fraction of the thickness rule are not worth taking back.
     let small: Vec<f64> = layers
@@ -457,18 +467,14 @@ pub fn settle(
         })
         .collect();
     if rounds == 0 || movable.is_empty() {
-        return 0;
+        return (0, 0);
     }
+    let mut checks = 0;
     let Stack {
         tris,
         object_of,
         tri_start,
-    } = Stack::new(body.map(|b| b.0), layers, starts, nvg);
-    // Broad phase: one BVH, refitted every round to boxes that hold each moving triangle at
-    // the round's start and after the move (every vertex stays on that segment).
-    let box_of = |t: &[u32; 3], p: &[Vec3]| Aabb::from_points(t.iter().map(|&v| &p[v as usize]));
-    let mut boxes: Vec<Aabb> = tris.par_iter().map(|t| box_of(t, pos)).collect();
-    let mut bvh = Bvh::build(&boxes);
+    } = stack;
     let tris_of = |vs: &[usize]| -> Vec<u32> {
         let mut out: Vec<u32> = Vec::new();
         for &v in vs {
@@ -487,6 +493,24 @@ pub fn settle(
         out.dedup();
         out
     };
+    // Broad phase: the triangles that can move (those of the movable vertices; the set only
+    // shrinks) in a small BVH, refitted every round to boxes that hold each moving triangle at
+    // the round's start and after the move (every vertex stays on that segment); all others
+    // stay where they are, in the objects' `bvhs` (whose boxes of the movable triangles are
+    // skipped).
+    let movers = tris_of(&movable);
+    let mut is_mover = vec![false; tris.len()];
+    for &t in &movers {
+        is_mover[t as usize] = true;
+    }
+    let mut boxes: Vec<Aabb> = movers
+        .par_iter()
+        .map(|&t| stack.box_of(t as usize, pos))
+        .collect();
+    let mut bvh = Bvh::build(&boxes);
+    // The triangles moving in the current round.
+    let mut moving_now = vec![false; tris.len()];
+    let slot = |t: u32| movers.binary_search(&t).unwrap_or_else(|_| unreachable!());
     // Per vertex: the fraction of the way back it tries next (halved when put back), and
     // whether it was put back in the current round.
     let mut fraction = vec![0.5f64; nvg];
@@ -500,7 +524,7 @@ pub fn settle(
         }
         let moving = tris_of(&movable);
         for &t in &moving {
-            boxes[t as usize] = box_of(&tris[t as usize], pos);
+            boxes[slot(t)] = stack.box_of(t as usize, pos);
         }
         for &v in &movable {
             before[v] = pos[v];
@@ -508,36 +532,83 @@ pub fn settle(
             pos[v] += (target[v] - pos[v]) * fraction[v];
         }
         for &t in &moving {
-            let b = box_of(&tris[t as usize], pos);
-            boxes[t as usize] = boxes[t as usize].union(&b);
+            let i = slot(t);
+            boxes[i] = boxes[i].union(&stack.box_of(t as usize, pos));
         }
         bvh.refit(&boxes);
+        for &t in &moving {
+            moving_now[t as usize] = true;
+        }
         let mut changed = movable.clone();
+        let mut first = true;
         loop {
-            let check = tris_of(&changed);
+            checks += 1;
             let (pos_ro, before_ro) = (&*pos, &before);
             let crossing = |ta: [u32; 3], tb: [u32; 3], p: &[Vec3]| {
                 may_intersect(ta, tb, p) && triangles_intersect(ta, tb, p)
             };
-            let mut pairs: Vec<(u32, u32)> = check
-                .par_iter()
-                .flat_map_iter(|&a| {
-                    let ta = tris[a as usize];
-                    let bbox = Aabb::from_points(ta.iter().map(|&v| &pos_ro[v as usize]));
-                    let mut out = Vec::new();
-                    bvh.query(&bbox, |b| {
-                        let tb = tris[b as usize];
-                        if b != a
-                            && crossing(ta, tb, pos_ro)
-                            && (object_of[a as usize] != object_of[b as usize]
-                                || !crossing(ta, tb, before_ro))
-                        {
-                            out.push((a.min(b), a.max(b)));
+            // A pair that crosses now and must not: between objects, or new within a garment.
+            let new_pair = |a: u32, b: u32| {
+                let (ta, tb) = (tris[a as usize], tris[b as usize]);
+                crossing(ta, tb, pos_ro)
+                    && (object_of[a as usize] != object_of[b as usize]
+                        || !crossing(ta, tb, before_ro))
+            };
+            let order = |a: u32, b: u32| (a.min(b), a.max(b));
+            let mut pairs: Vec<(u32, u32)> = Vec::new();
+            // Many moving triangles: BVH against BVH; few: one query each.
+            if first && 4 * moving.len() >= movers.len() {
+                // Every triangle of a moved vertex against everything: BVH against BVH.
+                for (o, ob) in bvhs.iter().enumerate() {
+                    let base = tri_start[o];
+                    pairs.extend(bvh.cross_pairs(ob, |i, j, out| {
+                        let (a, b) = (movers[i as usize], j + base);
+                        if moving_now[a as usize] && !is_mover[b as usize] && new_pair(a, b) {
+                            out.push(order(a, b));
                         }
-                    });
-                    out
-                })
-                .collect();
+                    }));
+                }
+                pairs.extend(bvh.self_pairs(|i, j, out| {
+                    let (a, b) = (movers[i as usize], movers[j as usize]);
+                    if (moving_now[a as usize] || moving_now[b as usize]) && new_pair(a, b) {
+                        out.push(order(a, b));
+                    }
+                }));
+                first = false;
+            } else {
+                // The triangles of the moved vertices (first check) or of the vertices put
+                // back: one query each.
+                let check = if first {
+                    moving.clone()
+                } else {
+                    tris_of(&changed)
+                };
+                first = false;
+                pairs = check
+                    .par_iter()
+                    .with_min_len(32)
+                    .flat_map_iter(|&a| {
+                        let ta = tris[a as usize];
+                        let bbox = Aabb::from_points(ta.iter().map(|&v| &pos_ro[v as usize]));
+                        let mut out = Vec::new();
+                        for (o, ob) in bvhs.iter().enumerate() {
+                            ob.query(&bbox, |i| {
+                                let b = i + tri_start[o];
+                                if !is_mover[b as usize] && new_pair(a, b) {
+                                    out.push(order(a, b));
+                                }
+                            });
+                        }
+                        bvh.query(&bbox, |i| {
+                            let b = movers[i as usize];
+                            if b != a && new_pair(a, b) {
+                                out.push(order(a, b));
+                            }
+                        });
+                        out
+                    })
+                    .collect();
+            }
             pairs.sort_unstable();
             pairs.dedup();
             changed.clear();
@@ -566,8 +637,11 @@ pub fn settle(
                 settled[v] = true;
             }
         }
+        for &t in &moving {
+            moving_now[t as usize] = false;
+        }
     }
-    settled.iter().filter(|&&s| s).count()
+    (settled.iter().filter(|&&s| s).count(), checks)
 }
 
 /// The triangles of all garments (in layer order) and of the body, over the concatenated
@@ -604,6 +678,85 @@ impl Stack {
             tri_start,
         }
     }
+
+    /// The triangles of object `o`.
+    fn object(&self, o: usize) -> &[[u32; 3]] {
+        &self.tris[self.tri_start[o] as usize..self.tri_start[o + 1] as usize]
+    }
+
+    /// Box of triangle `t` at `pos`.
+    fn box_of(&self, t: usize, pos: &[Vec3]) -> Aabb {
+        Aabb::from_points(self.tris[t].iter().map(|&v| &pos[v as usize]))
+    }
+
+    /// A hierarchy over the boxes of object `o`'s triangles at `pos` (local ids).
+    fn object_bvh(&self, o: usize, pos: &[Vec3]) -> Bvh {
+        let r = self.tri_start[o] as usize..self.tri_start[o + 1] as usize;
+        let boxes: Vec<Aabb> = r.into_par_iter().map(|t| self.box_of(t, pos)).collect();
+        Bvh::build(&boxes)
+    }
+
+    /// Global ids of the crossing pairs `(a, b)`, `a < b`, between different objects (exact
+    /// test of the analysis), from one hierarchy per object over the boxes at `pos` (sorted).
+    fn object_pairs(&self, pos: &[Vec3], bvhs: &[Bvh]) -> Vec<(u32, u32)> {
+        let nobj = self.tri_start.len() - 1;
+        let mut pairs: Vec<(u32, u32)> = Vec::new();
+        for o in 0..nobj {
+            for o2 in o + 1..nobj {
+                let (s1, s2) = (self.tri_start[o], self.tri_start[o2]);
+                pairs.extend(bvhs[o].cross_pairs(&bvhs[o2], |i, j, out| {
+                    let (a, b) = (i + s1, j + s2);
+                    let (ta, tb) = (self.tris[a as usize], self.tris[b as usize]);
+                    if triangles_may_intersect(
+                        &ta.map(|v| pos[v as usize]),
+                        &tb.map(|v| pos[v as usize]),
+                    ) && triangles_intersect(ta, tb, pos)
+                    {
+                        out.push((a, b));
+                    }
+                }));
+            }
+        }
+        pairs.sort_unstable();
+        pairs
+    }
+}
+
+/// The triangles of one object that moved at least once in [`separate_pairs`], in two BVHs:
+/// `old`, rebuilt only when the triangles added since its build (`new`, rebuilt every round)
+/// outnumber a quarter of it, else refitted, so that the rebuilds cost a constant factor of
+/// one build over all of them (they were rebuilt every round: ~140 builds of ~25k boxes at
+/// the Table-2 size).
+#[derive(Default)]
+struct Dynamic {
+    old_ids: Vec<u32>,
+    old: Bvh,
+    new_ids: Vec<u32>,
+    new: Bvh,
+}
+
+impl Dynamic {
+    /// Adds the `fresh` triangles (global ids, ascending, none already in) and brings both
+    /// BVHs to the current `boxes`.
+    fn update(&mut self, fresh: &[u32], boxes: &[Aabb]) {
+        let boxes_of =
+            |ids: &[u32]| -> Vec<Aabb> { ids.iter().map(|&t| boxes[t as usize]).collect() };
+        self.new_ids.extend_from_slice(fresh);
+        if 4 * self.new_ids.len() > self.old_ids.len() {
+            self.old_ids.append(&mut self.new_ids);
+            self.old_ids.sort_unstable();
+            self.old = Bvh::build(&boxes_of(&self.old_ids));
+            self.new = Bvh::default();
+        } else {
+            self.old.refit(&boxes_of(&self.old_ids));
+            self.new = Bvh::build(&boxes_of(&self.new_ids));
+        }
+    }
+
+    /// Both parts: ids and BVH (local ids index the id list).
+    fn parts(&self) -> [(&[u32], &Bvh); 2] {
+        [(&self.old_ids, &self.old), (&self.new_ids, &self.new)]
+    }
 }
 
 /// The symmetric phase of the repair (see the module docs) on the concatenated positions `pos`
@@ -621,6 +774,26 @@ pub fn separate_pairs(
     rings: &[usize],
     params: &RepairParams,
 ) -> PairRepair {
+    let nvg: usize = layers.iter().map(|l| l.mesh.positions.len()).sum();
+    let stack = Stack::new(body.map(|b| b.0), layers, starts, nvg);
+    let bvhs = (0..stack.tri_start.len() - 1)
+        .map(|o| stack.object_bvh(o, pos))
+        .collect();
+    separate_pairs_from(body, layers, pos, starts, rings, params, &stack, bvhs).0
+}
+
+/// [`separate_pairs`] on the triangles of `stack`, starting from one hierarchy per object over
+/// the boxes at `pos` (`statics`); returns them refitted to the output positions.
+fn separate_pairs_from(
+    body: Option<(&Mesh, &dyn LayerField)>,
+    layers: &[RepairLayer],
+    pos: &mut [Vec3],
+    starts: &[u32],
+    rings: &[usize],
+    params: &RepairParams,
+    stack: &Stack,
+    mut statics: Vec<Bvh>,
+) -> (PairRepair, Vec<Bvh>) {
     let ng = layers.len();
     let mut rep = PairRepair::default();
     let nvg: usize = layers.iter().map(|l| l.mesh.positions.len()).sum();
@@ -628,25 +801,19 @@ pub fn separate_pairs(
         tris,
         object_of,
         tri_start,
-    } = Stack::new(body.map(|b| b.0), layers, starts, nvg);
+    } = stack;
     let nobj = tri_start.len() - 1;
-    let box_of =
-        |t: usize, pos: &[Vec3]| Aabb::from_points(tris[t].iter().map(|&v| &pos[v as usize]));
-    let all_boxes = |pos: &[Vec3]| -> Vec<Aabb> {
-        (0..tris.len())
-            .into_par_iter()
-            .map(|t| box_of(t, pos))
-            .collect()
-    };
-    let mut boxes = all_boxes(pos);
-    let bvh = Bvh::build(&boxes);
-    let mut pairs = object_pairs(&tris, &object_of, pos, &bvh, None);
-    drop(bvh);
+    let box_of = |t: usize, pos: &[Vec3]| stack.box_of(t, pos);
+    let mut pairs = stack.object_pairs(pos, &statics);
     rep.crossing_pairs = pairs.len();
     rep.remaining = pairs.len();
     if params.pair_rounds == 0 || pairs.is_empty() {
-        return rep;
+        return (rep, statics);
     }
+    let mut boxes: Vec<Aabb> = (0..tris.len())
+        .into_par_iter()
+        .map(|t| box_of(t, pos))
+        .collect();
     let field_of = |o: usize| -> Option<&dyn LayerField> {
         if o == ng {
             body.map(|b| b.1)
@@ -662,17 +829,15 @@ pub fn separate_pairs(
         }
     };
     let rank = |o: usize| if o == ng { -1 } else { o as i64 };
-    // Incremental broad phase: one static BVH per object over the triangles as they were at the
-    // start (exact for the triangles that never moved), and one BVH over the triangles that
-    // moved at least once (`dynamic`), rebuilt every round. A pair that can appear has a
-    // triangle moved this round; it is found against the static BVHs of the other objects
-    // (skipping moved triangles, whose static boxes are stale) and against the dynamic BVH.
-    let statics: Vec<Bvh> = (0..nobj)
-        .into_par_iter()
-        .map(|o| Bvh::build(&boxes[tri_start[o] as usize..tri_start[o + 1] as usize]))
-        .collect();
+    // Incremental broad phase: the static BVHs (one per object) over the triangles as they
+    // were at the start (exact for the triangles that never moved), and one BVH over the
+    // triangles that moved at least once (`dynamic`), rebuilt every round. A pair that can
+    // appear has a triangle moved this round; it is found against the static BVHs of the other
+    // objects (skipping moved triangles, whose static boxes are stale) and against the dynamic
+    // BVH.
     let mut dynamic = vec![false; tris.len()];
     let mut dynamic_list: Vec<u32> = Vec::new();
+    let mut dyn_by: Vec<Dynamic> = (0..nobj).map(|_| Dynamic::default()).collect();
     // Reused per-round buffers, cleared through the lists of what was touched.
     let mut acc = vec![Vec3::zeros(); nvg];
     let mut count = vec![0u32; nvg];
@@ -716,7 +881,10 @@ pub fn separate_pairs(
         }
         if pairs.len() < best {
             (best, best_round) = (pairs.len(), round);
-            best_pos = Some(pos[..nvg].to_vec());
+            match best_pos.as_mut() {
+                Some(b) => b.copy_from_slice(&pos[..nvg]),
+                None => best_pos = Some(pos[..nvg].to_vec()),
+            }
         } else if round - best_round >= params.pair_rounds {
             break;
         }
@@ -738,6 +906,7 @@ pub fn separate_pairs(
         // Per pair: inner triangle, outer triangle, direction, shares.
         let moves: Vec<(usize, usize, Vec3, f64, f64)> = pairs
             .par_iter()
+            .with_min_len(32)
             .map(|&(a, b)| {
                 let (a, b) = (a as usize, b as usize);
                 let (lo, hi) = if rank(object_of[a] as usize) < rank(object_of[b] as usize) {
@@ -858,16 +1027,23 @@ pub fn separate_pairs(
             set[v] = false;
         }
         moved_list.sort_unstable();
+        let mut fresh: Vec<u32> = Vec::new();
         for &t in &moved_list {
             moved_tri[t as usize] = false;
             boxes[t as usize] = box_of(t as usize, pos);
             if !dynamic[t as usize] {
                 dynamic[t as usize] = true;
                 dynamic_list.push(t);
+                fresh.push(t);
             }
         }
-        dynamic_list.sort_unstable();
-        // Per object: its moved triangles and its dynamic triangles, each with a BVH.
+        // Per object: its dynamic triangles (updated with the fresh ones) and its moved
+        // triangles, with a BVH.
+        dyn_by.par_iter_mut().enumerate().for_each(|(o, d)| {
+            let lo = fresh.partition_point(|&t| t < tri_start[o]);
+            let hi = fresh.partition_point(|&t| t < tri_start[o + 1]);
+            d.update(&fresh[lo..hi], &boxes);
+        });
         let split = |list: &[u32]| -> Vec<(Vec<u32>, Bvh)> {
             (0..nobj)
                 .into_par_iter()
@@ -881,7 +1057,6 @@ pub fn separate_pairs(
                 .collect()
         };
         let moved_by = split(&moved_list);
-        let dyn_by = split(&dynamic_list);
         let pos_ro: &[Vec3] = pos;
         let test = |a: usize, b: usize| {
             let (ta, tb) = (tris[a], tris[b]);
@@ -906,8 +1081,7 @@ pub fn separate_pairs(
                         out.push((a.min(b) as u32, a.max(b) as u32));
                     }
                 }));
-                let (dids, db) = &dyn_by[o2];
-                if !dids.is_empty() {
+                for (dids, db) in dyn_by[o2].parts() {
                     pairs.extend(mb.cross_pairs(db, |i, j, out| {
                         let (a, b) = (mids[i as usize] as usize, dids[j as usize] as usize);
                         if test(a, b) {
@@ -926,9 +1100,19 @@ pub fn separate_pairs(
         }
     }
     rep.vertices = moved_ever.iter().filter(|&&m| m).count();
-    let bvh = Bvh::build(&all_boxes(pos));
-    rep.remaining = object_pairs(&tris, &object_of, pos, &bvh, None).len();
-    rep
+    // Only the dynamic triangles moved: refit the static BVHs of their objects to the output,
+    // then count the pairs with a full test.
+    for &t in &dynamic_list {
+        boxes[t as usize] = box_of(t as usize, pos);
+    }
+    for o in 0..nobj {
+        let r = tri_start[o] as usize..tri_start[o + 1] as usize;
+        if r.clone().any(|t| dynamic[t]) {
+            statics[o].refit(&boxes[r]);
+        }
+    }
+    rep.remaining = stack.object_pairs(pos, &statics).len();
+    (rep, statics)
 }
 
 #[cfg(test)]
@@ -1115,6 +1299,99 @@ mod tests {
             }
             prop_assert_eq!(back, rep.settled);
             prop_assert!(back > 0, "the repair's bump always overdoes somewhere");
+        }
+    }
+
+    /// Random small triangles in the unit cube, `sizes[o]` of them per object (own vertices).
+    fn soup(seed: u64, sizes: &[usize]) -> (Stack, Vec<Vec3>) {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut p = || Vec3::new(rng.random(), rng.random(), rng.random());
+        let (mut pos, mut tris, mut object_of, mut tri_start) = (vec![], vec![], vec![], vec![]);
+        for (o, &n) in sizes.iter().enumerate() {
+            tri_start.push(tris.len() as u32);
+            for _ in 0..n {
+                let c = p();
+                let v = pos.len() as u32;
+                for _ in 0..3 {
+                    pos.push(c + (p() - Vec3::repeat(0.5)) * 0.4);
+                }
+                tris.push([v, v + 1, v + 2]);
+                object_of.push(o as u32);
+            }
+        }
+        tri_start.push(tris.len() as u32);
+        let stack = Stack {
+            tris,
+            object_of,
+            tri_start,
+        };
+        (stack, pos)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        #[test]
+        fn object_pairs_match_brute_force(
+            seed in any::<u64>(), sizes in prop::collection::vec(0usize..40, 1..5),
+        ) {
+            let (stack, pos) = soup(seed, &sizes);
+            let nobj = stack.tri_start.len() - 1;
+            let bvhs: Vec<Bvh> = (0..nobj).map(|o| stack.object_bvh(o, &pos)).collect();
+            let got = stack.object_pairs(&pos, &bvhs);
+            // Oracle: every pair of triangles of different objects, exact test.
+            let n = stack.tris.len() as u32;
+            let mut want = Vec::new();
+            for a in 0..n {
+                for b in a + 1..n {
+                    if stack.object_of[a as usize] != stack.object_of[b as usize]
+                        && triangles_intersect(stack.tris[a as usize], stack.tris[b as usize], &pos)
+                    {
+                        want.push((a, b));
+                    }
+                }
+            }
+            prop_assert_eq!(got, want);
+        }
+
+        #[test]
+        fn dynamic_sets_find_every_overlapping_box(
+            seed in any::<u64>(), batches in prop::collection::vec(0usize..30, 1..12),
+        ) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let n: usize = batches.iter().sum::<usize>() + 5;
+            let random_box = |rng: &mut rand_chacha::ChaCha8Rng| {
+                let c = Vec3::new(rng.random(), rng.random(), rng.random());
+                let h = Vec3::new(rng.random(), rng.random(), rng.random()) * 0.1;
+                Aabb::from_points([c - h, c + h].iter())
+            };
+            let mut boxes: Vec<Aabb> = (0..n).map(|_| random_box(&mut rng)).collect();
+            let mut d = Dynamic::default();
+            let mut added: Vec<u32> = Vec::new();
+            let mut next = 0u32;
+            for &b in &batches {
+                let fresh: Vec<u32> = (next..next + b as u32).collect();
+                next += b as u32;
+                // Every member may have moved since the last round.
+                for &t in added.iter().chain(&fresh) {
+                    if rng.random_bool(0.5) {
+                        boxes[t as usize] = random_box(&mut rng);
+                    }
+                }
+                d.update(&fresh, &boxes);
+                added.extend_from_slice(&fresh);
+                let q = random_box(&mut rng);
+                let mut got: Vec<u32> = Vec::new();
+                for (ids, bvh) in d.parts() {
+                    bvh.query(&q, |i| got.push(ids[i as usize]));
+                }
+                got.sort_unstable();
+                let mut want: Vec<u32> =
+                    added.iter().copied().filter(|&t| boxes[t as usize].overlaps(&q)).collect();
+                want.sort_unstable();
+                prop_assert_eq!(got, want);
+            }
         }
     }
 

@@ -40,24 +40,36 @@ fn swept<const N: usize>(scene: &Scene, v: &[Vec3], nodes: [u32; N], margin: f64
     b.inflated(margin)
 }
 
+/// The union of the (uninflated) swept boxes `vert` of cloth vertices `nodes`.
+#[inline]
+fn union_of(vert: &[Aabb], nodes: &[u32]) -> Aabb {
+    nodes
+        .iter()
+        .fold(Aabb::EMPTY, |b, &k| b.union(&vert[k as usize]))
+}
+
 impl BroadPhase {
     /// Refits (or, every [`REBUILD_EVERY`] steps and when `rebuild`, rebuilds) the hierarchies to
     /// the motion `v` of this pass; `margin` is the largest thickness in use.
     pub fn update(&mut self, scene: &Scene, v: &[Vec3], margin: f64, rebuild: bool) {
-        let tri: Vec<Aabb> = scene
-            .triangles
-            .par_iter()
-            .map(|t| swept(scene, v, *t, margin))
-            .collect();
-        let edge: Vec<Aabb> = scene
-            .edges
-            .par_iter()
-            .map(|e| swept(scene, v, *e, 0.5 * margin))
-            .collect();
+        // A primitive's swept box is the union of its vertices' (min and max are exact, so
+        // the same box as [`swept`] over its nodes), inflated.
         let vert: Vec<Aabb> = (0..scene.x0.len() as u32)
             .into_par_iter()
             .with_min_len(1024)
             .map(|p| swept(scene, v, [p], 0.0))
+            .collect();
+        let tri: Vec<Aabb> = scene
+            .triangles
+            .par_iter()
+            .with_min_len(1024)
+            .map(|t| union_of(&vert, t).inflated(margin))
+            .collect();
+        let edge: Vec<Aabb> = scene
+            .edges
+            .par_iter()
+            .with_min_len(1024)
+            .map(|e| union_of(&vert, e).inflated(0.5 * margin))
             .collect();
         let obs = scene.obstacles;
         let fresh = !self.built || rebuild || self.obstacle_count != obs.triangles.len();
@@ -114,21 +126,34 @@ impl BroadPhase {
             return;
         }
         let touched = |nodes: &[u32]| nodes.iter().any(|&k| changed[k as usize]);
-        for (t, b) in scene.triangles.iter().zip(self.tri_boxes.iter_mut()) {
-            if touched(t) {
-                *b = swept(scene, v, *t, margin);
-            }
-        }
-        for (e, b) in scene.edges.iter().zip(self.edge_boxes.iter_mut()) {
-            if touched(e) {
-                *b = swept(scene, v, *e, 0.5 * margin);
-            }
-        }
-        for (p, b) in self.vert_boxes.iter_mut().enumerate() {
-            if changed[p] {
-                *b = swept(scene, v, [p as u32], 0.0);
-            }
-        }
+        self.vert_boxes
+            .par_iter_mut()
+            .with_min_len(4096)
+            .enumerate()
+            .for_each(|(p, b)| {
+                if changed[p] {
+                    *b = swept(scene, v, [p as u32], 0.0);
+                }
+            });
+        let vert = &self.vert_boxes;
+        self.tri_boxes
+            .par_iter_mut()
+            .with_min_len(4096)
+            .zip(scene.triangles.par_iter())
+            .for_each(|(b, t)| {
+                if touched(t) {
+                    *b = union_of(vert, t).inflated(margin);
+                }
+            });
+        self.edge_boxes
+            .par_iter_mut()
+            .with_min_len(4096)
+            .zip(scene.edges.par_iter())
+            .for_each(|(b, e)| {
+                if touched(e) {
+                    *b = union_of(vert, e).inflated(0.5 * margin);
+                }
+            });
         self.tri.refit(&self.tri_boxes);
         self.edge.refit(&self.edge_boxes);
         self.vert.refit(&self.vert_boxes);

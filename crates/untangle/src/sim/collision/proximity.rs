@@ -224,6 +224,27 @@ impl NearList {
         }
     }
 
+    /// An empty list with room for the verdicts of `candidates` pairs.
+    pub fn with_capacity(candidates: usize) -> NearList {
+        NearList {
+            slots: Vec::with_capacity(candidates),
+            nears: Vec::with_capacity(candidates / 2),
+        }
+    }
+
+    /// The lists of consecutive chunks of candidates, one after the other (as [`Self::append`]
+    /// of each in turn, each part copied once).
+    pub fn concat(parts: Vec<NearList>) -> NearList {
+        let mut all = NearList {
+            slots: Vec::with_capacity(parts.iter().map(|p| p.slots.len()).sum()),
+            nears: Vec::with_capacity(parts.iter().map(|p| p.nears.len()).sum()),
+        };
+        for p in parts {
+            all.append(p);
+        }
+        all
+    }
+
     /// Appends another list (the next chunk of candidates).
     pub fn append(&mut self, other: NearList) {
         let base = self.nears.len() as u32;

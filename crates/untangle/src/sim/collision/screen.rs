@@ -44,7 +44,10 @@ pub fn screen(
     let chunks: Vec<Screened> = candidates
         .par_chunks(CHUNK)
         .map(|chunk| {
-            let mut out = Screened::default();
+            let mut out = Screened {
+                near: NearList::with_capacity(if proximity.is_some() { chunk.len() } else { 0 }),
+                collisions: Vec::new(),
+            };
             for &p in chunk {
                 let Some(eps) = scene.thickness(p, policy) else {
                     continue;
@@ -79,13 +82,17 @@ pub fn screen(
             out
         })
         .collect();
-    let mut all = Screened::default();
+    let mut collisions = Vec::with_capacity(chunks.iter().map(|c| c.collisions.len()).sum());
+    let mut near = Vec::with_capacity(chunks.len());
     for c in chunks {
-        all.near.append(c.near);
-        all.collisions.extend(c.collisions);
+        collisions.extend(c.collisions);
+        near.push(c.near);
     }
-    all.collisions.sort_unstable_by_key(|c| c.pair);
-    all
+    collisions.sort_unstable_by_key(|c| c.pair);
+    Screened {
+        near: NearList::concat(near),
+        collisions,
+    }
 }
 
 #[cfg(test)]
