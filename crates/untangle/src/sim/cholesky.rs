@@ -44,7 +44,7 @@ pub struct ScalarCholesky {
     factored: bool,
     scratch: MemBuffer,
     /// Scratch of the solves: faer's stack and the right-hand sides column by column.
-    solve_scratch: std::sync::Mutex<(MemBuffer, Vec<f64>)>,
+    solve_scratch: std::sync::Mutex<(MemBuffer, MemBuffer, Vec<f64>)>,
 }
 
 impl std::fmt::Debug for ScalarCholesky {
@@ -101,7 +101,9 @@ impl ScalarCholesky {
         )
         .ok()?;
         let solve_scratch =
-            MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(3, Par::Seq)).ok()?;
+            MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(2, Par::Seq)).ok()?;
+        let solve_scratch_x =
+            MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)).ok()?;
         Some(ScalarCholesky {
             n,
             values: vec![0.0; row_idx.len()],
@@ -112,7 +114,7 @@ impl ScalarCholesky {
             symbolic,
             factored: false,
             scratch,
-            solve_scratch: std::sync::Mutex::new((solve_scratch, Vec::new())),
+            solve_scratch: std::sync::Mutex::new((solve_scratch_x, solve_scratch, Vec::new())),
         })
     }
 
@@ -181,12 +183,12 @@ impl ScalarCholesky {
         }
         let n = self.n;
         let mut guard = self.solve_scratch.lock().unwrap_or_else(|e| e.into_inner());
-        let (stack, buf) = &mut *guard;
+        let (stack_x, stack, buf) = &mut *guard;
         buf.resize(3 * n, 0.0);
         for (i, v) in r.iter().enumerate() {
             (buf[i], buf[n + i], buf[2 * n + i]) = (v.x, v.y, v.z);
         }
-        self.solve_columns(stack, buf, r);
+        self.solve_columns(stack_x, stack, buf, r);
     }
 
     /// Solves `B X = R` into `out` with row `i` of `R` given by `rhs(i)` (evaluated in parallel,
@@ -200,7 +202,7 @@ impl ScalarCholesky {
         }
         let n = self.n;
         let mut guard = self.solve_scratch.lock().unwrap_or_else(|e| e.into_inner());
-        let (stack, buf) = &mut *guard;
+        let (stack_x, stack, buf) = &mut *guard;
         buf.resize(3 * n, 0.0);
         let (bx, rest) = buf.split_at_mut(n);
         let (by, bz) = rest.split_at_mut(n);
@@ -214,18 +216,39 @@ impl ScalarCholesky {
                     (xs[k], ys[k], zs[k]) = (v.x, v.y, v.z);
                 }
             });
-        self.solve_columns(stack, buf, out);
+        self.solve_columns(stack_x, stack, buf, out);
     }
 
-    /// faer's solve of the three columns of `buf` (column-major, `n x 3`), written to `out`.
-    fn solve_columns(&self, stack: &mut MemBuffer, buf: &mut [f64], out: &mut [Vec3]) {
+    /// faer's solve of the three columns of `buf` (column-major, `n x 3`), written to `out`:
+    /// the `x` column and the `y, z` pair as two solves side by side (`rayon::join`; always split
+    /// the same way, so the arithmetic does not depend on the number of threads).
+    fn solve_columns(
+        &self,
+        stack_x: &mut MemBuffer,
+        stack: &mut MemBuffer,
+        buf: &mut [f64],
+        out: &mut [Vec3],
+    ) {
         let n = self.n;
         let llt = LltRef::<'_, usize, f64>::new(&self.symbolic, &self.factor);
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(buf, n, 3),
-            Par::Seq,
-            MemStack::new(stack),
+        let (bx, byz) = buf.split_at_mut(n);
+        rayon::join(
+            || {
+                llt.solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(bx, n, 1),
+                    Par::Seq,
+                    MemStack::new(stack_x),
+                )
+            },
+            || {
+                llt.solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(byz, n, 2),
+                    Par::Seq,
+                    MemStack::new(stack),
+                )
+            },
         );
         for (i, v) in out.iter_mut().enumerate() {
             *v = Vec3::new(buf[i], buf[n + i], buf[2 * n + i]);
