@@ -557,18 +557,7 @@ mod tests {
     use crate::geom::Vec3;
     use proptest::prelude::*;
 
-    fn boxes(raw: &[([f64; 3], [f64; 3])]) -> Vec<Aabb> {
-        raw.iter()
-            .map(|(c, e)| {
-                let c = Vec3::new(c[0], c[1], c[2]);
-                let e = Vec3::new(e[0], e[1], e[2]);
-                Aabb {
-                    min: c - e,
-                    max: c + e,
-                }
-            })
-            .collect()
-    }
+    use crate::broad::test_boxes as boxes;
 
     proptest! {
         /// Self and cross traversal report exactly the overlapping pairs of a brute-force scan,

@@ -7,3 +7,18 @@ pub mod sweep;
 
 pub use bvh::Bvh;
 pub use sweep::SweepAndPrune;
+
+/// Test input: boxes given by centre and half extent (the proptests' random boxes).
+#[cfg(test)]
+pub(crate) fn test_boxes(raw: &[([f64; 3], [f64; 3])]) -> Vec<crate::geom::Aabb> {
+    use crate::geom::Vec3;
+    raw.iter()
+        .map(|(c, e)| {
+            let (c, e) = (Vec3::new(c[0], c[1], c[2]), Vec3::new(e[0], e[1], e[2]));
+            crate::geom::Aabb {
+                min: c - e,
+                max: c + e,
+            }
+        })
+        .collect()
+}
