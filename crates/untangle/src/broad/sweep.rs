@@ -15,10 +15,9 @@ use std::cmp::Ordering;
 pub struct SweepAndPrune {
     /// Primitive index of each slot (slots are in sweep order).
     order: Vec<u32>,
-    /// Lower x bound of each slot (non-decreasing in the total order of `f64::total_cmp`).
-    min_x: Vec<f64>,
     /// Bounds of each slot by field (min x, max x, min y, max y, min z, max z), each padded by
-    /// one slot so the two-lane loads stay in bounds.
+    /// one slot so the two-lane loads stay in bounds. The lower x bounds (`lanes[0]`) are
+    /// non-decreasing in the total order of `f64::total_cmp`.
     lanes: [Vec<f64>; 6],
 }
 
@@ -60,12 +59,7 @@ impl SweepAndPrune {
             field(|b| b.min.z),
             field(|b| b.max.z),
         ];
-        let min_x = lanes[0][..order.len()].to_vec();
-        SweepAndPrune {
-            order,
-            min_x,
-            lanes,
-        }
+        SweepAndPrune { order, lanes }
     }
 
     /// Number of primitives.
@@ -86,7 +80,7 @@ impl SweepAndPrune {
     /// How many pairs the sweep tests (pairs whose x intervals overlap): its cost, found by one
     /// binary search per box.
     pub fn x_pairs(&self) -> usize {
-        let m = &self.min_x;
+        let m = &self.lanes[0][..self.order.len()];
         (0..m.len())
             .map(|k| {
                 let hi = self.lanes[1][k];
@@ -114,7 +108,7 @@ impl SweepAndPrune {
                 // Later boxes start no earlier: once one starts after box i ends, none of the
                 // rest reaches back to it.
                 // (`partial_cmp` rather than `<=`: a NaN bound does not stop the sweep.)
-                while j < n && self.min_x[j].partial_cmp(&max_x) != Some(Ordering::Greater) {
+                while j < n && self.lanes[0][j].partial_cmp(&max_x) != Some(Ordering::Greater) {
                     let mut m = self.overlap_pair(&probe, j);
                     while m != 0 {
                         let l = m.trailing_zeros() as usize;

@@ -5,8 +5,9 @@
 //!
 //! The symbolic analysis (approximate-minimum-degree ordering, supernodal structure) is done
 //! once per sparsity pattern by the `faer` crate; numeric refactorisations (new rest shape, new
-//! pin set) reuse it. `faer` is built without its `rayon` feature: factorisation and solves run
-//! sequentially and are bit-identical for any thread count. (A subtree-parallel substitution of
+//! pin set) reuse it. `faer` is built without its `rayon` feature: the factorisation and each
+//! solve run sequentially; a three-column solve is the `x` column and the `y, z` pair side by
+//! side, always split the same way, so results are bit-identical for any thread count. (A subtree-parallel substitution of
 //! our own, three coordinates interleaved, was tried on branch sim7 and was not faster: the
 //! solve is bound by reading the factor; BENCHMARKS.md.)
 //!
@@ -29,6 +30,10 @@ use super::pcg::Filter;
 use super::sparse::BsrPattern;
 use crate::geom::Vec3;
 
+/// Scratch of a solve: faer stacks for the `x` column and the `y, z` pair, and the `n x 3`
+/// column-major right-hand-side buffer.
+type SolveScratch = (MemBuffer, MemBuffer, Vec<f64>);
+
 /// The symbolic analysis of one node pattern plus the numeric factor of the last matrix given
 /// to [`ScalarCholesky::factor`].
 pub struct ScalarCholesky {
@@ -44,7 +49,7 @@ pub struct ScalarCholesky {
     factored: bool,
     scratch: MemBuffer,
     /// Scratch of the solves: faer's stack and the right-hand sides column by column.
-    solve_scratch: std::sync::Mutex<(MemBuffer, MemBuffer, Vec<f64>)>,
+    solve_scratch: std::sync::Mutex<SolveScratch>,
 }
 
 impl std::fmt::Debug for ScalarCholesky {
@@ -118,11 +123,6 @@ impl ScalarCholesky {
         })
     }
 
-    /// Number of rows.
-    pub fn rows(&self) -> usize {
-        self.n
-    }
-
     /// Stored values of the factor `L` (fill-in included).
     pub fn factor_entries(&self) -> usize {
         self.factor.len()
@@ -178,32 +178,29 @@ impl ScalarCholesky {
 
     /// Solves `B X = R` in place for the three columns of `r` (`x`, `y`, `z` coordinates).
     pub fn solve3(&self, r: &mut [Vec3]) {
-        if !self.factored {
+        let Some(mut guard) = self.solve_buffers() else {
             return;
-        }
+        };
         let n = self.n;
-        let mut guard = self.solve_scratch.lock().unwrap_or_else(|e| e.into_inner());
         let (stack_x, stack, buf) = &mut *guard;
-        buf.resize(3 * n, 0.0);
         for (i, v) in r.iter().enumerate() {
             (buf[i], buf[n + i], buf[2 * n + i]) = (v.x, v.y, v.z);
         }
         self.solve_columns(stack_x, stack, buf, r);
     }
 
-    /// Solves `B X = R` into `out` with row `i` of `R` given by `rhs(i)` (evaluated in parallel,
-    /// then one sequential solve). Without a factor `out` is left unchanged.
+    /// Solves `B X = R` into `out` with row `i` of `R` given by `rhs(i)` (evaluated in parallel
+    /// straight into the solver's buffer, then the two faer solves side by side). Without a
+    /// factor `out` is left unchanged.
     pub fn solve_with<F>(&self, rhs: F, out: &mut [Vec3])
     where
         F: Fn(usize) -> Vec3 + Sync,
     {
-        if !self.factored {
+        let Some(mut guard) = self.solve_buffers() else {
             return;
-        }
+        };
         let n = self.n;
-        let mut guard = self.solve_scratch.lock().unwrap_or_else(|e| e.into_inner());
         let (stack_x, stack, buf) = &mut *guard;
-        buf.resize(3 * n, 0.0);
         let (bx, rest) = buf.split_at_mut(n);
         let (by, bz) = rest.split_at_mut(n);
         bx.par_chunks_mut(RHS_CHUNK)
@@ -217,6 +214,17 @@ impl ScalarCholesky {
                 }
             });
         self.solve_columns(stack_x, stack, buf, out);
+    }
+
+    /// The solve scratch (two faer stacks and the `n x 3` column buffer, sized), or `None`
+    /// without a factor.
+    fn solve_buffers(&self) -> Option<std::sync::MutexGuard<'_, SolveScratch>> {
+        if !self.factored {
+            return None;
+        }
+        let mut guard = self.solve_scratch.lock().unwrap_or_else(|e| e.into_inner());
+        guard.2.resize(3 * self.n, 0.0);
+        Some(guard)
     }
 
     /// faer's solve of the three columns of `buf` (column-major, `n x 3`), written to `out`:

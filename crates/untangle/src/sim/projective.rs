@@ -252,16 +252,6 @@ impl Projective {
         &self.pattern
     }
 
-    /// The constant elastic matrix `L` (one scalar per pattern slot).
-    pub fn stiffness(&self) -> &[f64] {
-        &self.stiff
-    }
-
-    /// Number of vertices.
-    pub fn vertices(&self) -> usize {
-        self.n
-    }
-
     /// The global matrix `diag(inertia) + (1 + damping) L` per pattern slot (`inertia[i]` =
     /// `(1 + h alpha) m_i / h^2`, `damping` = `beta / h`).
     pub fn system_values(&self, inertia: &[f64], damping: f64) -> Vec<f64> {
@@ -297,21 +287,6 @@ impl Projective {
             wv += p * r.b[k];
         }
         Matrix3x2::from_columns(&[wu, wv])
-    }
-
-    /// The local step: the projections of every triangle at `x`, returned as the global step's
-    /// right-hand side `sum_i w_i S_i^T A_i^T p_i` per vertex (Bouaziz et al. Eq. 12). Parallel
-    /// over triangles, gathered per vertex in a fixed order (deterministic).
-    pub fn local_step(&self, x: &[Vec3]) -> Vec<Vec3> {
-        let mut targets = Vec::new();
-        self.project(x, &mut targets);
-        let mut out = vec![Vec3::zeros(); self.n];
-        out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, os)| {
-            for (k, o) in os.iter_mut().enumerate() {
-                *o = self.gather(&targets, c * CHUNK + k);
-            }
-        });
-        out
     }
 
     /// The projections of the local step (Bouaziz et al. Sec. 4): per triangle the weighted
@@ -462,7 +437,8 @@ impl Projective {
     /// The global step with the local step's projections in `work.targets`
     /// ([`Projective::project`]). When the factor is exact for the problem (`problem.exact`)
     /// and no force is asked: one direct solve of the eliminated system, the local step's
-    /// per-vertex gather fused into the forward substitution. Otherwise CG on
+    /// per-vertex gather evaluated while the right-hand side is written into the solver's buffer
+    /// ([`ScalarCholesky::solve_with`]). Otherwise CG on
     /// `A x = rhs_const + local` for the increment from the current iterate (warm start),
     /// preconditioned with `factor`; with `force`, also the residual force `A x - rhs` at the
     /// new iterate (the constraint forces at constrained vertices).

@@ -617,7 +617,6 @@ impl Simulator {
         (f, e_stretch, e_bend)
     }
 
-    /// The implicit solve of Baraff & Witkin (module docs): new velocities.
     /// Coulomb friction at an obstacle contact as tangential damping (Baraff & Witkin 1998,
     /// Sec. 5.3): the tangent-plane projector `I - n n^T` and the damping coefficient `g`,
     /// bounded by the previous step's normal impulse over the predicted sliding speed and by
@@ -635,6 +634,7 @@ impl Simulator {
         Some((Matrix3::identity() - c.normal * c.normal.transpose(), g))
     }
 
+    /// The implicit solve of Baraff & Witkin (module docs): new velocities.
     fn solve_baraff_witkin(&mut self, policy: &dyn ContactPolicy, inv_mass: &[f64]) -> Solved {
         let p = self.params.clone();
         let h = p.dt;

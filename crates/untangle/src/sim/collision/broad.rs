@@ -266,7 +266,8 @@ impl BroadPhase {
 
     /// All candidate pairs whose swept boxes overlap (after [`BroadPhase::update`] with the same
     /// `v`): cloth vertex-triangle (vertex not a corner), cloth edge-edge (no common vertex), and
-    /// cloth-obstacle pairs. Sorted by kind, then by the enumeration order.
+    /// cloth-obstacle pairs. Vertex pairs first (cloth-triangle and obstacle pairs ordered by
+    /// vertex, kind, triangle), then the edge-edge pairs in traversal order.
     pub fn candidates(&self, scene: &Scene, v: &[Vec3], margin: f64) -> Vec<Pair> {
         let n = scene.x0.len();
         let obs = scene.obstacles;

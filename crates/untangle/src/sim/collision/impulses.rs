@@ -76,7 +76,7 @@ fn ccd_with_start_distance(
     d0: f64,
     reach: f64,
 ) -> Option<f64> {
-    let scale = x0.iter().chain(x1).fold(0.0f64, |m, p| m.max(p.amax()));
+    let scale = super::coordinate_scale(x0).max(super::coordinate_scale(x1));
     let slack = eps * 1e-9 + 1e-12 * scale;
     // Conservative advancement (Mirtich 1996): no contact can happen before
     // t + (d(t) - eps) / reach. It settles separating and slowly approaching pairs in a few

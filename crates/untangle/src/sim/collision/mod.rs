@@ -247,10 +247,7 @@ pub(crate) fn obstacle_free_scene_for_tests<'a>(
 #[inline]
 pub fn swept_apart(x0: &[Vec3; 4], x1: &[Vec3; 4], vt: bool, d: f64) -> bool {
     let split = if vt { 1 } else { 2 };
-    let mut scale = 0.0f64;
-    for k in 0..4 {
-        scale = scale.max(x0[k].amax()).max(x1[k].amax());
-    }
+    let scale = coordinate_scale(x0).max(coordinate_scale(x1));
     let d = d * (1.0 + 1e-9) + 1e-12 * scale;
     for axis in 0..3 {
         let (mut lo_a, mut hi_a) = (f64::INFINITY, f64::NEG_INFINITY);

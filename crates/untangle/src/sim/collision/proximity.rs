@@ -261,7 +261,8 @@ impl NearList {
         self.nears.extend(other.nears);
     }
 
-    /// Pairs whose closest points were computed.
+    /// Pairs kept for the sweeps (close or within reach, `Near`); pairs whose closest points
+    /// were computed and found far are not counted.
     pub fn evaluated(&self) -> usize {
         self.nears.len()
     }
