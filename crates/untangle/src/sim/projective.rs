@@ -386,6 +386,11 @@ pub struct Workspace {
     pub targets: Vec<Matrix3x2<f64>>,
     /// The eliminated constant right-hand side of a direct global step.
     rhs: Vec<Vec3>,
+    /// A CG global step's `A x`, right-hand side `b`, prescribed increments and increment.
+    ax: Vec<Vec3>,
+    b: Vec<Vec3>,
+    z: Vec<Vec3>,
+    dx: Vec<Vec3>,
 }
 
 /// What the local/global iterations of one step did (`StepReport::projective`).
@@ -504,20 +509,23 @@ impl Projective {
                 &owned
             }
         };
-        let mut ax = vec![Vec3::zeros(); n];
-        matrix.mul(&self.pattern, x, &mut ax);
-        let b: Vec<Vec3> = (0..n)
-            .map(|i| rhs_const[i] + self.gather(targets, i) - ax[i])
-            .collect();
-        let z: Vec<Vec3> = (0..n).map(|i| problem.targets[i] - x[i]).collect();
-        let mut dx = vec![Vec3::zeros(); n];
+        let (ax, b, z, dx) = (&mut work.ax, &mut work.b, &mut work.z, &mut work.dx);
+        ax.clear();
+        ax.resize(n, Vec3::zeros());
+        matrix.mul(&self.pattern, x, ax);
+        b.clear();
+        b.extend((0..n).map(|i| rhs_const[i] + self.gather(targets, i) - ax[i]));
+        z.clear();
+        z.extend((0..n).map(|i| problem.targets[i] - x[i]));
+        dx.clear();
+        dx.resize(n, Vec3::zeros());
         let r = pcg::solve(
             &self.pattern,
             matrix,
-            &b,
+            b,
             problem.filter,
-            &z,
-            &mut dx,
+            z,
+            dx,
             settings,
             pcg::Preconditioner::Cholesky(factor),
         );
@@ -525,7 +533,7 @@ impl Projective {
             x[i] += dx[i];
         }
         if let Some(f) = force {
-            matrix.mul(&self.pattern, &dx, &mut ax);
+            matrix.mul(&self.pattern, dx, ax);
             f.resize(n, Vec3::zeros());
             for i in 0..n {
                 f[i] = ax[i] - b[i];
