@@ -124,6 +124,11 @@ fn bad_input_gives_one_line_and_exit_2() {
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n",
             "non-manifold edge",
         ),
+        (
+            "duplicate.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\nf 3 2 4\n",
+            "duplicate.obj:7: duplicate face: the same three vertices as the face at duplicate.obj:6",
+        ),
         ("nofaces.obj", "v 0 0 0\n", "nofaces.obj: no faces"),
         ("empty.obj", "", "empty.obj: no faces"),
         (

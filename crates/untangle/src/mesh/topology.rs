@@ -105,6 +105,15 @@ impl Topology {
                 j += 1;
             }
             let (lo, hi) = ((key >> 32) as u32, key as u32);
+            if let Some((first, second)) = duplicate(&half[i..j], triangles) {
+                return Err(Error::input(
+                    place(second),
+                    format!(
+                        "duplicate face: the same three vertices as the face at {}",
+                        place(first)
+                    ),
+                ));
+            }
             if j - i > 2 {
                 let lines: Vec<String> = half[i..j]
                     .iter()
@@ -195,6 +204,25 @@ impl Topology {
     }
 }
 
+/// Among the faces beside one edge (half-edges `3 t + k`, in increasing order), the first two
+/// with the same three vertices in any order (a duplicated face), as `(earlier, later)`.
+fn duplicate(beside: &[(u64, u32)], triangles: &[[u32; 3]]) -> Option<(usize, usize)> {
+    let sorted = |t: u32| {
+        let mut v = triangles[t as usize];
+        v.sort_unstable();
+        v
+    };
+    for (a, ha) in beside.iter().enumerate() {
+        for hb in &beside[a + 1..] {
+            let (ta, tb) = (ha.1 / 3, hb.1 / 3);
+            if ta != tb && sorted(ta) == sorted(tb) {
+                return Some((ta as usize, tb as usize));
+            }
+        }
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -246,5 +274,23 @@ mod tests {
             msg.contains("f.obj:10") && msg.contains("f.obj:12"),
             "{msg}"
         );
+    }
+
+    #[test]
+    fn duplicate_face_is_an_error() {
+        // The same face twice, in either winding, beside a valid one.
+        for dup in [[2u32, 1, 3], [1, 2, 3], [3, 1, 2]] {
+            let tris = [[0u32, 1, 2], [1, 3, 2], dup];
+            let err =
+                Topology::from_triangles(&tris, 4, |i| format!("f.obj:{}", i + 10)).unwrap_err();
+            let msg = err.to_string();
+            assert!(msg.contains("duplicate face"), "{msg}");
+            assert!(
+                msg.starts_with("f.obj:12") && msg.contains("f.obj:11"),
+                "{msg}"
+            );
+        }
+        // Two faces sharing an edge but not the third vertex are fine.
+        assert!(Topology::from_triangles(&[[0, 1, 2], [1, 0, 3]], 4, |i| i.to_string()).is_ok());
     }
 }
