@@ -88,25 +88,7 @@ fn main() {
         if let Some(v) = env("CHAKO_GAMMA") {
             p.cha_ko.gamma = v;
         }
-        if let Some(v) = env("CHAKO_TRIAL") {
-            p.cha_ko.trial_retries = v as u32;
-        }
-        if let Some(v) = env("CHAKO_TRIAL_TRIGGER") {
-            use untangle::methods::cha_ko::TrialTrigger;
-            p.cha_ko.trial_trigger =
-                [TrialTrigger::AnyNewlyRed, TrialTrigger::CountIncrease][v as usize];
-        }
-        if let Some(v) = env("CHAKO_TRIAL_SCOPE") {
-            use untangle::methods::cha_ko::TrialScope;
-            p.cha_ko.trial_scope = [TrialScope::EdgesAndTriangles, TrialScope::Edges][v as usize];
-        }
-        if let Some(v) = env("CHAKO_TRIAL_RELEASE") {
-            p.cha_ko.trial_release_after = v as u32;
-        }
-        if let Some(v) = env("CHAKO_TRIAL_BLOCK") {
-            use untangle::methods::cha_ko::TrialBlock;
-            p.cha_ko.trial_block = [TrialBlock::GreenGreen, TrialBlock::RedGreen][v as usize];
-        }
+        common::trial_params(&mut p.cha_ko);
         // CHAKO_TRACE=1: one line per step on stderr.
         let trace = env("CHAKO_TRACE").is_some_and(|v| v != 0.0);
         let t = Instant::now();
