@@ -316,7 +316,7 @@ proptest! {
         for v in 0..nv as u32 {
             for t in 0..nt {
                 let want = match inner.vertex_triangle(v, t) {
-                    Contact::Skip if blocked.vertex_triangle.iter().any(|&b| b == (v, t)) => held,
+                    Contact::Skip if blocked.vertex_triangle.contains(&(v, t)) => held,
                     c => c,
                 };
                 prop_assert_eq!(p.vertex_triangle(v, t), want);
@@ -326,7 +326,7 @@ proptest! {
             for e1 in 0..ne {
                 let key = (e0.min(e1), e0.max(e1));
                 let want = match inner.edge_edge(e0, e1) {
-                    Contact::Skip if blocked.edge_edge.iter().any(|&b| b == key) => held,
+                    Contact::Skip if blocked.edge_edge.contains(&key) => held,
                     c => c,
                 };
                 prop_assert_eq!(p.edge_edge(e0, e1), want);
