@@ -9,8 +9,8 @@
 //! the ones that resolve the tanglement.
 //!
 //! The trial step tells them apart after the fact: the loop takes the step, analyses the result,
-//! and if a vertex that was green at the start of the step is red now, it rolls the simulator
-//! back and takes the step again with exactly the red-red pairs whose *new* crossings caused it
+//! and if the red-vertex count went up ([`TrialTrigger`]: or any vertex green at the start of the
+//! step is red now), it rolls the simulator back and takes the step again with exactly the red-red pairs whose *new* crossings caused it
 //! held apart ([`pairs_to_block`]): for every edge-triangle crossing of the result that was not
 //! there before and touches a newly red vertex (the edge has it as an end, or the triangle as a
 //! corner), the two vertex-triangle pairs (each end of the edge against the triangle) and the
@@ -18,6 +18,10 @@
 //! must have appeared. When no new crossing touches a newly red vertex, every new crossing is
 //! blocked. Everything else keeps the paper's m-CCH rule ([`super::policy`]). After
 //! [`super::Params::trial_retries`] retries the step is accepted as it is and reported.
+//!
+//! Measured (docs/cha-ko.md, BENCHMARKS.md): the count becomes monotone only where the blocks
+//! freeze the resolution (the increases are passages the resolution needs), so the trial step
+//! is off by default.
 
 use super::policy::{rule, MchPolicy, PairColour};
 use super::Params;
