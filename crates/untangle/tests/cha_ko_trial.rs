@@ -214,7 +214,7 @@ fn run_loop(g: &Garment, p: ResolveParams) -> Run {
 }
 
 #[test]
-fn the_trial_loop_retries_exactly_where_the_plain_loop_turned_vertices_red() {
+fn the_trial_loop_retries_exactly_where_the_plain_loop_increased_the_count() {
     // Exploded handkerchief 10 x 10, seed 2. Oracle: the plain loop (trial off) up to its
     // first increase of the red-vertex count; the trial loop must be identical before it
     // (no retry where nothing turns red), retry at that step, and afterwards never increase
