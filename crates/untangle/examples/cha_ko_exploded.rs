@@ -26,8 +26,9 @@ fn main() {
             .unwrap_or(d)
     };
     let (first, last, cells, max_steps) = (arg(1, 1), arg(2, 50), arg(3, 14), arg(4, 400));
-    println!("| seed | pairs | outcome | steps | clean at | red monotone | first increase (step: from -> to) | increases | final clean (independent) | wall s |");
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("| seed | pairs | outcome | steps | clean at | red monotone | first increase (step: from -> to) | increases | final clean (independent) | wall s | trial: steps retried / retries / accepted with increase |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut trial_total = [0usize; 3];
     let mut steps_resolved = Vec::new();
     let mut resolved = 0;
     let mut monotone = 0;
@@ -46,7 +47,11 @@ fn main() {
         // Parameter experiments: CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA,
         // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT,
         // CHAKO_ZONE_SPIN (0: impact zones translate), CHAKO_ZONE_SOFT (soft zone levels),
-        // CHAKO_AVOID_LOOP_PULL_START.
+        // CHAKO_AVOID_LOOP_PULL_START, CHAKO_TRIAL (retries of the trial step, 0 = off),
+        // CHAKO_TRIAL_BLOCK (0: blocked pairs green-green, 1: red-green), CHAKO_TRIAL_TRIGGER
+        // (0: any newly red vertex, 1: the count went up), CHAKO_TRIAL_SCOPE (0: crossings at
+        // the newly red vertices' edges and triangles, 1: edges only), CHAKO_TRIAL_RELEASE (a
+        // pair blocked this many steps in a row may cross; 0 = never).
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
         if let Some(v) = env("CHAKO_MAX_LEVEL") {
             p.cha_ko.max_level = v as u32;
@@ -83,10 +88,45 @@ fn main() {
         if let Some(v) = env("CHAKO_GAMMA") {
             p.cha_ko.gamma = v;
         }
+        common::trial_params(&mut p.cha_ko);
+        // CHAKO_TRACE=1: one line per step on stderr.
+        let trace = env("CHAKO_TRACE").is_some_and(|v| v != 0.0);
         let t = Instant::now();
         let mut r = Resolver::new(&g, p).expect("resolver");
         let mut reds: Vec<usize> = Vec::new();
-        let s = r.run(|st| reds.push(st.red_vertices)).expect("run");
+        // Trial step: steps with a retry, retries, steps accepted with a newly red vertex.
+        let mut trial = [0usize; 3];
+        let s = r
+            .run(|st| {
+                if trace {
+                    eprintln!(
+                        "seed {seed} step {} pairs {} red {} ops {} pulls {}+{} shrinks {}+{} | trial retries {} newly red {} -> {} blocked {} all_new {} stop {} released {} | zones {} ms sim {:.0}",
+                        st.step,
+                        st.intersecting_pairs,
+                        st.red_vertices,
+                        st.uv.active_ops,
+                        st.uv.pulls_started,
+                        st.uv.pulls_continued,
+                        st.uv.shrinks_started,
+                        st.uv.shrinks_continued,
+                        st.trial.retries,
+                        st.trial.newly_red_first,
+                        st.trial.newly_red_accepted,
+                        st.trial.blocked_pairs,
+                        st.trial.blocked_all_new,
+                        st.trial.nothing_new_to_block,
+                        st.trial.released,
+                        st.impact_zones,
+                        st.ms_sim
+                    );
+                }
+                reds.push(st.red_vertices);
+                trial[0] += (st.trial.retries > 0) as usize;
+                trial[1] += st.trial.retries as usize;
+                trial[2] += (st.trial.red_increase_accepted > 0) as usize;
+            })
+            .expect("run");
+        trial_total.iter_mut().zip(trial).for_each(|(t, x)| *t += x);
         let wall = t.elapsed().as_secs_f64();
         let increases: Vec<(usize, usize, usize)> = reds
             .windows(2)
@@ -108,7 +148,7 @@ fn main() {
             independent_clean += 1;
         }
         println!(
-            "| {seed} | {} | {:?} | {} | {} | {} | {} | {} | {} | {:.1} |",
+            "| {seed} | {} | {:?} | {} | {} | {} | {} | {} | {} | {:.1} | {} / {} / {} |",
             s.initial_pairs,
             s.outcome,
             s.steps,
@@ -119,7 +159,10 @@ fn main() {
                 .map_or("-".into(), |(i, a, b)| format!("{i}: {a} -> {b}")),
             increases.len(),
             if clean { "yes" } else { "no" },
-            wall
+            wall,
+            trial[0],
+            trial[1],
+            trial[2]
         );
     }
     steps_resolved.sort_unstable();
@@ -135,7 +178,10 @@ fn main() {
     };
     println!();
     println!(
-        "seeds {first}-{last}, {cells}x{cells} cells: resolved {resolved}/{total}, final state clean by an independent analysis {independent_clean}/{total}, median steps (resolved) {median}, red-vertex count monotone {monotone}/{total}, total wall {:.0} s",
+        "seeds {first}-{last}, {cells}x{cells} cells: resolved {resolved}/{total}, final state clean by an independent analysis {independent_clean}/{total}, median steps (resolved) {median}, red-vertex count monotone {monotone}/{total}, trial: steps retried {} retries {} accepted with increase {}, total wall {:.0} s",
+        trial_total[0],
+        trial_total[1],
+        trial_total[2],
         t_all.elapsed().as_secs_f64()
     );
 }

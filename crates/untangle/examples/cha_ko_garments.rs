@@ -57,6 +57,7 @@ fn main() {
         // CHAKO_AVOID_LOOP_PULL_START=1, CHAKO_ZONE_SOFT
         // (the simulator's soft impact-zone levels; 0 = rigid zones).
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
+        common::trial_params(&mut p.cha_ko);
         if let Some(v) = env("CHAKO_REVOKE") {
             p.cha_ko.revoke_levels_per_step = v as u32;
         }

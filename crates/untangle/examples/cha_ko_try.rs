@@ -6,7 +6,9 @@
 //! with NAME a scene of `untangle scene` (`closed`, `ll`, `eight`, `cross`, `bbii`, `bibi`, `bli`)
 //! or `exploded` (SIZE = cells per side); env `MAX_STEPS`, `STUCK`, `NO_UV=1` (m-CCH alone),
 //! `CHAKO_ZONE_SOFT`, `CHAKO_ZONE_SPIN` (the simulator's `ZoneMotion`), `CHAKO_AVOID_LOOP_PULL`,
-//! `CHAKO_REVOKE`.
+//! `CHAKO_REVOKE`, the trial step's `CHAKO_TRIAL*` (see `common::trial_params`).
+mod common;
+
 use untangle::analysis::{AnalysisMesh, ObjectKind};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
@@ -53,6 +55,7 @@ fn main() {
     if let Ok(v) = std::env::var("CHAKO_REVOKE") {
         p.cha_ko.revoke_levels_per_step = v.parse().unwrap();
     }
+    common::trial_params(&mut p.cha_ko);
     // Ablation: m-CCH alone, no uv-space update.
     p.uv_update = std::env::var("NO_UV").is_err();
     if !p.uv_update {
@@ -68,11 +71,12 @@ fn main() {
     let s = r
         .run(|st| {
             println!(
-                "{} pairs {} tang {} red {} rtri {} | pull +{} ~{} shrink +{} ~{} rev {} blk {}/{} act {} sat {} fb {} st {} | aq {} z {} | {:.1} {:.1} {:.1} ms",
+                "{} pairs {} tang {} red {} rtri {} | pull +{} ~{} shrink +{} ~{} rev {} blk {}/{} act {} sat {} fb {} st {} | trial {} new {} inc {} blk {} | aq {} z {} | {:.1} {:.1} {:.1} ms",
                 st.step, st.intersecting_pairs, st.tanglements, st.red_vertices, st.red_triangles,
                 st.uv.pulls_started, st.uv.pulls_continued, st.uv.shrinks_started, st.uv.shrinks_continued,
                 st.uv.revoked_levels, st.uv.blocked_fan, st.uv.blocked_subject, st.uv.active_ops, st.uv.saturated_ops,
                 st.uv.fallbacks.len(), st.uv.stalls.len(),
+                st.trial.retries, st.trial.newly_red_first, st.trial.red_increase_accepted, st.trial.blocked_pairs,
                 st.administrative_quit, st.impact_zones, st.ms_analysis, st.ms_uv, st.ms_sim
             )
         })

@@ -60,3 +60,33 @@ pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimP
     }
     p
 }
+
+/// The trial step of the Cha & Ko loop from the environment (`methods::cha_ko::trial`):
+/// `CHAKO_TRIAL` (retries, 0 = off), `CHAKO_TRIAL_TRIGGER` (0: any newly red vertex, 1: the
+/// count went up), `CHAKO_TRIAL_SCOPE` (0: crossings at the newly red vertices' edges and
+/// triangles, 1: edges only), `CHAKO_TRIAL_RELEASE` (a pair blocked this many steps in a row may
+/// cross; 0 = never), `CHAKO_TRIAL_BLOCK` (0: blocked pairs green-green, 1: red-green). Unset
+/// variables keep `p`'s values.
+pub fn trial_params(p: &mut untangle::methods::cha_ko::Params) {
+    use untangle::methods::cha_ko::{TrialBlock, TrialScope, TrialTrigger};
+    let env = |k: &str| {
+        std::env::var(k)
+            .ok()
+            .map(|s| s.parse::<u32>().unwrap_or_else(|_| panic!("{k}: a number")))
+    };
+    if let Some(v) = env("CHAKO_TRIAL") {
+        p.trial_retries = v;
+    }
+    if let Some(v) = env("CHAKO_TRIAL_TRIGGER") {
+        p.trial_trigger = [TrialTrigger::AnyNewlyRed, TrialTrigger::CountIncrease][v as usize];
+    }
+    if let Some(v) = env("CHAKO_TRIAL_SCOPE") {
+        p.trial_scope = [TrialScope::EdgesAndTriangles, TrialScope::Edges][v as usize];
+    }
+    if let Some(v) = env("CHAKO_TRIAL_RELEASE") {
+        p.trial_release_after = v;
+    }
+    if let Some(v) = env("CHAKO_TRIAL_BLOCK") {
+        p.trial_block = [TrialBlock::GreenGreen, TrialBlock::RedGreen][v as usize];
+    }
+}

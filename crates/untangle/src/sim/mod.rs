@@ -38,4 +38,4 @@ pub use collision::impact_zones::ZoneMotion;
 pub use obstacle::Obstacle;
 pub use policy::{Contact, ContactPolicy, RedGreen, UniformThickness};
 pub use report::StepReport;
-pub use step::{CgPreconditioner, Integrator, SimParams, Simulator};
+pub use step::{CgPreconditioner, Integrator, SimParams, SimSnapshot, Simulator};

@@ -220,6 +220,25 @@ impl SimParams {
     }
 }
 
+/// The dynamic state of a [`Simulator`] at one moment ([`Simulator::snapshot`],
+/// [`Simulator::restore`]).
+#[derive(Clone, Debug)]
+pub struct SimSnapshot {
+    x: Vec<Vec3>,
+    v: Vec<Vec3>,
+    pin_targets: Vec<Option<Vec3>>,
+    obstacles: Obstacles,
+    broad: BroadPhase,
+    contacts: ContactFinder,
+    resting: Vec<Pair>,
+    contact_impulse: Vec<f64>,
+    amg_built: Option<(usize, u64)>,
+    amg_last: usize,
+    dv_prev: Vec<Vec3>,
+    steps: u64,
+    time: f64,
+}
+
 /// A cloth simulator over one garment (world vertices = nodes) plus obstacles.
 pub struct Simulator {
     params: SimParams,
@@ -436,6 +455,54 @@ impl Simulator {
         if rebuild {
             self.rebuild_bend_base();
         }
+        Ok(())
+    }
+
+    /// The state a step changes (positions, velocities, resting contacts, obstacle motion,
+    /// CG warm start, step count and time), to undo a step with [`Simulator::restore`]. Caches
+    /// that only speed a step up (the projective factor, the multigrid hierarchy) are not part of
+    /// it; the rest shape is not either (set it again if it changed).
+    pub fn snapshot(&self) -> SimSnapshot {
+        SimSnapshot {
+            x: self.x.clone(),
+            v: self.v.clone(),
+            pin_targets: self.pin_targets.clone(),
+            obstacles: self.obstacles.clone(),
+            broad: self.broad.clone(),
+            contacts: self.contacts.clone(),
+            resting: self.resting.clone(),
+            contact_impulse: self.contact_impulse.clone(),
+            amg_built: self.amg_built,
+            amg_last: self.amg_last,
+            dv_prev: self.dv_prev.clone(),
+            steps: self.steps,
+            time: self.time,
+        }
+    }
+
+    /// Returns to a state taken with [`Simulator::snapshot`] of this simulator: the steps since
+    /// are undone (a trial step, e.g. Cha & Ko's loop predicting the colouring after a step).
+    pub fn restore(&mut self, s: &SimSnapshot) -> Result<()> {
+        if s.x.len() != self.x.len() {
+            return Err(Error::Parameter(format!(
+                "snapshot of {} vertices restored into a simulator of {}",
+                s.x.len(),
+                self.x.len()
+            )));
+        }
+        self.x.clone_from(&s.x);
+        self.v.clone_from(&s.v);
+        self.pin_targets.clone_from(&s.pin_targets);
+        self.obstacles.clone_from(&s.obstacles);
+        self.broad.clone_from(&s.broad);
+        self.contacts.clone_from(&s.contacts);
+        self.resting.clone_from(&s.resting);
+        self.contact_impulse.clone_from(&s.contact_impulse);
+        self.amg_built = s.amg_built;
+        self.amg_last = s.amg_last;
+        self.dv_prev.clone_from(&s.dv_prev);
+        self.steps = s.steps;
+        self.time = s.time;
         Ok(())
     }
 

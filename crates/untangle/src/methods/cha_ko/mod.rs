@@ -19,7 +19,8 @@
 //! (Algorithm 2), [`seams`] (coordinated pulls across panels, our design of the missing
 //! Appendix A/B), [`fallback`] (when no fan passes the test, Sec. 6.1, our design of the missing
 //! Appendix C), [`policy`] (m-CCH), [`report`] (per-step reports and the Table 1 analogue),
-//! [`resolve`] (the whole loop of Fig. 1b with the simulator).
+//! [`resolve`] (the whole loop of Fig. 1b with the simulator), [`trial`] (the trial step: a
+//! step rolled back and retried when a green vertex turned red, ours).
 
 pub mod fallback;
 pub mod fan;
@@ -32,6 +33,7 @@ pub mod schedule;
 pub mod seams;
 pub mod state;
 pub mod tit;
+pub mod trial;
 
 pub use fallback::Fallback;
 pub use params::Params;
@@ -40,6 +42,7 @@ pub use report::{EndReason, FinesseRecord, FinesseStats, Stall, StallReason, UvU
 pub use resolve::{LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver};
 pub use seams::SeamKind;
 pub use state::{MovedCopy, Op, OpKind};
+pub use trial::{TrialBlock, TrialReport, TrialScope, TrialTrigger};
 
 use crate::analysis::{Analysis, AnalysisMesh, Coloring, ObjectKind};
 use crate::error::{Error, Result};

@@ -2,6 +2,7 @@
 //! epsilon_RG = 0.1 x average edge length, epsilon_CCD = 1e-6).
 
 use super::policy::MixedEdges;
+use super::trial::{TrialBlock, TrialScope, TrialTrigger};
 use crate::error::{Error, Result};
 
 /// The smallest scale `gamma^level` any operation reaches (a subject edge keeps at least this
@@ -56,6 +57,20 @@ pub struct Params {
     /// Which edge-edge pairs with a *mixed* edge (one red, one green end) m-CCH lets cross
     /// (experiment, ours; see [`MixedEdges`]). Default: the paper's (such an edge is red).
     pub mixed_edges: MixedEdges,
+    /// Trial step (ours, see [`super::trial`]; used by [`super::Resolver`]): after a simulator
+    /// step that turned a green vertex red (against Sec. 7's theorem, part 1), roll it back and
+    /// retry it with the red-red pairs of the new crossings at those vertices held apart, up to
+    /// this many times; then accept it and report it. 0 = off (the paper's loop).
+    pub trial_retries: u32,
+    /// How the pairs blocked by a trial retry are held apart.
+    pub trial_block: TrialBlock,
+    /// When the trial step retries (default: the count went up; retrying whenever any vertex
+    /// turned red froze the exploded handkerchief, BENCHMARKS.md).
+    pub trial_trigger: TrialTrigger,
+    /// Which new crossings at the newly red vertices it blocks.
+    pub trial_scope: TrialScope,
+    /// A pair blocked in this many consecutive steps is let cross again (0 = never released).
+    pub trial_release_after: u32,
 }
 
 impl Default for Params {
@@ -75,6 +90,11 @@ impl Default for Params {
             avoid_loop_pull_targets: false,
             avoid_loop_pull_targets_at_start: false,
             mixed_edges: MixedEdges::Red,
+            trial_retries: 0,
+            trial_block: TrialBlock::GreenGreen,
+            trial_trigger: TrialTrigger::CountIncrease,
+            trial_scope: TrialScope::EdgesAndTriangles,
+            trial_release_after: 0,
         }
     }
 }

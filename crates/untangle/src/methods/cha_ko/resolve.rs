@@ -14,8 +14,9 @@
 //! steps with the last good colouring's m-CCH policy (or plain CCH with `eps` on the first step).
 
 use super::report::{FinesseStats, Stall, UvUpdateReport};
+use super::trial::{trial_step, BlockHistory, TrialReport};
 use super::{ChaKo, Params};
-use crate::analysis::{analyze_with, AnalysisMesh, Coloring};
+use crate::analysis::{analyze_with, Analysis, AnalysisMesh, Coloring};
 use crate::error::Result;
 use crate::geom::Vec3;
 use crate::mesh::Garment;
@@ -85,6 +86,8 @@ pub struct LoopStep {
     pub tanglements: usize,
     /// The uv update.
     pub uv: UvUpdateReport,
+    /// The trial step ([`Params::trial_retries`]): retries and blocked pairs.
+    pub trial: TrialReport,
     /// Whether the simulator's collision handling ended the step with an administrative quit.
     pub administrative_quit: bool,
     /// Impact zones the simulator needed.
@@ -158,6 +161,12 @@ pub struct Resolver {
     since_best: usize,
     last_clean: bool,
     last_coloring: Option<Coloring>,
+    /// The analysis of the positions a trial step accepted, reused at the start of the next
+    /// step (with the positions it is of, in case the caller moved the cloth in between).
+    analysed: Option<(Vec<Vec3>, Analysis)>,
+    /// Pairs the trial step blocked in the last step, with the number of consecutive steps
+    /// they have been blocked ([`Params::trial_release_after`]).
+    blocked_for: BlockHistory,
 }
 
 impl Resolver {
@@ -180,6 +189,8 @@ impl Resolver {
             since_best: 0,
             last_clean: false,
             last_coloring: None,
+            analysed: None,
+            blocked_for: Default::default(),
         })
     }
 
@@ -213,7 +224,10 @@ impl Resolver {
     pub fn step(&mut self) -> Result<(LoopStep, StepReport)> {
         let t0 = Instant::now();
         let pos: Vec<Vec3> = self.sim.positions().to_vec();
-        let analysis = analyze_with(&self.am, &pos, &self.params.analysis);
+        let analysis = match self.analysed.take() {
+            Some((p, a)) if p == pos => Ok(a),
+            _ => analyze_with(&self.am, &pos, &self.params.analysis),
+        };
         let t1 = Instant::now();
         let ms = |x: Instant, y: Instant| (y - x).as_secs_f64() * 1e3;
         let mut a = match analysis {
@@ -232,7 +246,21 @@ impl Resolver {
         }
         let t2 = Instant::now();
         let policy = self.chako.contact_policy(&self.am, &a);
-        let sr = self.sim.step(&policy);
+        let (sr, trial) = if self.params.cha_ko.trial_retries > 0 && !a.is_clean() {
+            let t = trial_step(
+                &mut self.sim,
+                &self.am,
+                &a,
+                &policy,
+                &self.params.cha_ko,
+                &self.params.analysis,
+                &mut self.blocked_for,
+            )?;
+            self.analysed = t.analysed;
+            (t.step, t.trial)
+        } else {
+            (self.sim.step(&policy), TrialReport::default())
+        };
         let t3 = Instant::now();
         let clean = a.is_clean();
         let index = self.history.len() as u64;
@@ -260,6 +288,7 @@ impl Resolver {
             red_triangles: a.coloring.num_red_triangles(),
             tanglements: a.tanglements.len(),
             uv,
+            trial,
             administrative_quit: sr.administrative_quit(),
             impact_zones: sr.collisions.impact_zones,
             analysis_error: None,
@@ -298,6 +327,7 @@ impl Resolver {
                 active_ops: self.chako.operations().count(),
                 ..Default::default()
             },
+            trial: TrialReport::default(),
             administrative_quit: sr.administrative_quit(),
             impact_zones: sr.collisions.impact_zones,
             analysis_error: Some(error),
