@@ -553,7 +553,17 @@ fn settle(
     let mut bvh = Bvh::build(&boxes);
     // The triangles moving in the current round.
     let mut moving_now = vec![false; tris.len()];
-    let slot = |t: u32| movers.binary_search(&t).unwrap_or_else(|_| unreachable!());
+    // Slot of every mover in `boxes` (dense: one lookup per moving triangle per round).
+    let mut slot_of = vec![u32::MAX; tris.len()];
+    for (i, &t) in movers.iter().enumerate() {
+        slot_of[t as usize] = i as u32;
+    }
+    let slot = |t: u32| slot_of[t as usize] as usize;
+    // Whether a vertex is still in `movable` (which only shrinks).
+    let mut in_movable = vec![false; nvg];
+    for &v in &movable {
+        in_movable[v] = true;
+    }
     // Per vertex: the fraction of the way back it tries next (halved when put back), and
     // whether it was put back in the current round.
     let mut fraction = vec![0.5f64; nvg];
@@ -561,7 +571,11 @@ fn settle(
     let mut settled = vec![false; nvg];
     let mut before: Vec<Vec3> = pos.to_vec();
     for _ in 0..rounds {
-        movable.retain(|&v| fraction[v] >= MIN_SETTLE_FRACTION && pos[v] != target[v]);
+        movable.retain(|&v| {
+            let keep = fraction[v] >= MIN_SETTLE_FRACTION && pos[v] != target[v];
+            in_movable[v] = keep;
+            keep
+        });
         if movable.is_empty() {
             break;
         }
@@ -659,7 +673,7 @@ fn settle(
                 for t in [a, b] {
                     for &v in &tris[t as usize] {
                         let v = v as usize;
-                        if v < nvg && !frozen[v] && movable.binary_search(&v).is_ok() {
+                        if v < nvg && !frozen[v] && in_movable[v] {
                             frozen[v] = true;
                             fraction[v] *= 0.5;
                             pos[v] = before[v];
