@@ -15,6 +15,8 @@
 //! at the contact vertices;
 //! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ;
 //! `LAYERS_BENCH_SETTLE=n` sets the repair's settle rounds (0: off);
+//! `LAYERS_BENCH_NO_SELF_SEPARATION=1` turns off the repair's separation of self-intersections,
+//! `LAYERS_BENCH_SELF_SMOOTHING=x` sets its smoothing;
 //! `LAYERS_BENCH_PLAIN_OFFSETS=1` uses eq. 13's thickness offsets as written (no gradient
 //! scaling, see `implicit::thickness::scaled_offsets`); `LAYERS_BENCH_REPAIR=step,bump` sets the
 //! repair's push step and bump radius (optional third and fourth values: push steps and pair
@@ -124,6 +126,15 @@ fn main() {
             {
                 params.repair.settle_rounds = x;
             }
+            if std::env::var_os("LAYERS_BENCH_NO_SELF_SEPARATION").is_some() {
+                params.repair.separate_self_intersections = false;
+            }
+            if let Some(x) = std::env::var("LAYERS_BENCH_SELF_SMOOTHING")
+                .ok()
+                .and_then(|s| s.parse().ok())
+            {
+                params.repair.self_smoothing = x;
+            }
             if std::env::var_os("LAYERS_BENCH_PLAIN_OFFSETS").is_some() {
                 params.projection.scaled_offsets = false;
             }
@@ -171,10 +182,14 @@ fn main() {
             );
             let pr = &out.pair_repair;
             eprintln!(
-                "  repair wall (s): push {:.3}, pairs {:.3}, settle {:.3}",
+                "  repair wall (s): push {:.3}, pairs {:.3}, self {:.3}, settle {:.3}; self pairs {} -> {} in {} rounds",
                 pr.push_ms / 1e3,
                 pr.pairs_ms / 1e3,
-                pr.settle_ms / 1e3
+                pr.self_ms / 1e3,
+                pr.settle_ms / 1e3,
+                pr.self_pairs,
+                pr.self_remaining,
+                pr.self_rounds
             );
             if std::env::var_os("LAYERS_BENCH_VERBOSE").is_some() {
                 eprintln!(

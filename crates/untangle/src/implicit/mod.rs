@@ -41,7 +41,10 @@
 //! - The projection evaluates only the vertices whose position changed since their last
 //!   evaluation (same result as re-evaluating the whole deformed zone every pass) and skips
 //!   relaxation moves below ten tolerances (so converged regions stop being re-evaluated).
-//! - Self-intersection is out of the paper's scope (Sec. 7); [`self_guard`] optionally undoes
+//! - Self-intersection is out of the paper's scope (Sec. 7). By default the [`repair`]
+//!   separates the pairs of triangles of one garment that the projection or the pushes made
+//!   cross (a garment squeezed between two layers crumples: the outer triangle moves out and
+//!   the crumple is smoothed, the layers above make room); [`self_guard`] optionally undoes
 //!   the moves that make a garment intersect itself anew (off by default: it costs time and,
 //!   at the largest sizes, leaves crossings between layers when on in the repair).
 

@@ -338,6 +338,34 @@ fn arcsim_nine_layers_are_intersection_free() {
     );
     assert!(v.is_clean(), "{v:?}");
     assert_eq!(out.pair_repair.remaining, 0);
+    // No self-intersection created either (the input has none).
+    assert_eq!(v0.self_intersections, 0);
+    assert_eq!(v.self_intersections, 0, "{:?}", out.pair_repair);
+}
+
+#[test]
+fn arcsim_untangling_creates_no_self_intersection() {
+    // Five layers at subdivision 2 (10.9k vertices): the projection squeezes the dress
+    // between the pants and the T-shirt and it crumples (36 new self-intersecting pairs out
+    // of the projection, 52 left after the repair without its self phase); by default the
+    // output has none, and none between layers or with the body (global intersection
+    // analysis, an independent exact check).
+    let Some(shared) = shared_data() else { return };
+    let (body, garments, v0) = tangled_outfit(&shared, crate::scenes::outfit::GARMENTS, 2);
+    assert_eq!(v0.self_intersections, 0);
+    let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
+    let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
+    let v = verify_outfit(&body, &garments, &out.positions);
+    eprintln!(
+        "arcsim 5 layers, subdiv 2: before {v0:?}, after {v:?}, {:?}",
+        out.pair_repair
+    );
+    assert!(v.is_clean(), "{v:?}");
+    assert!(
+        out.pair_repair.self_pairs > 0,
+        "the scene exercises the phase"
+    );
+    assert_eq!(v.self_intersections, 0, "{:?}", out.pair_repair);
 }
 
 #[test]
@@ -644,6 +672,9 @@ fn arcsim_self_guard_adds_no_self_intersection() {
     let (body, garments, v0) = tangled_outfit(&shared, crate::scenes::outfit::GARMENTS, 1);
     let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
     let mut p = Params::default();
+    // The guards alone: the repair's separation of self-intersections (on by default, tested
+    // by `arcsim_untangling_creates_no_self_intersection`) off.
+    p.repair.separate_self_intersections = false;
     let off = untangle_layers(Some(&body), &inputs, &p, &|_| {}).unwrap();
     let v_off = verify_outfit(&body, &garments, &off.positions);
     p.projection.prevent_self_intersections = true;
