@@ -263,6 +263,35 @@ impl ScalarCholesky {
         }
     }
 
+    /// Solves `B X = R` in place for `k` scalar columns stored column-major in `cols` (`n x k`):
+    /// the first `k / 2` and the other columns as two faer solves side by side (always split the
+    /// same way, so the result does not depend on the thread count). Without a factor `cols` is
+    /// left unchanged.
+    pub fn solve_many(&self, cols: &mut [f64]) {
+        let n = self.n;
+        if !self.factored || n == 0 {
+            return;
+        }
+        let k = cols.len() / n;
+        let llt = LltRef::<'_, usize, f64>::new(&self.symbolic, &self.factor);
+        let solve = |c: &mut [f64]| {
+            let m = c.len() / n;
+            if m == 0 {
+                return;
+            }
+            let mut stack =
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(m, Par::Seq));
+            llt.solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(c, n, m),
+                Par::Seq,
+                MemStack::new(&mut stack),
+            );
+        };
+        let (a, b) = cols[..k * n].split_at_mut(k / 2 * n);
+        rayon::join(|| solve(a), || solve(b));
+    }
+
     /// The preconditioner `out = S (B^-1 (x) I3) S r`; returns `r . out`. Without a factor,
     /// `out = S r`.
     pub fn apply(&self, r: &[Vec3], filter: &[Filter], out: &mut [Vec3]) -> f64 {

@@ -25,6 +25,7 @@ pub mod cholesky;
 pub mod collision;
 pub mod contact;
 pub mod forces;
+pub mod low_rank;
 pub mod obstacle;
 pub mod pcg;
 pub mod policy;

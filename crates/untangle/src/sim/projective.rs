@@ -41,6 +41,7 @@ use rayon::prelude::*;
 
 use super::cholesky::ScalarCholesky;
 use super::forces::stretch::TriangleRest;
+use super::low_rank::LowRank;
 use super::pcg::{self, Filter, PcgResult, PcgSettings};
 use super::rest::RestShape;
 use super::sparse::{BsrMatrix, BsrPattern, CHUNK};
@@ -277,6 +278,21 @@ impl Projective {
         });
     }
 
+    /// `y = V x` for the scalar matrix with `values` per pattern slot (each coordinate).
+    pub fn mul_values(&self, values: &[f64], x: &[Vec3], y: &mut [Vec3]) {
+        let p = &self.pattern;
+        y.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
+            for (k, yi) in ys.iter_mut().enumerate() {
+                let i = c * CHUNK + k;
+                let mut acc = Vec3::zeros();
+                for s in p.offsets[i] as usize..p.offsets[i + 1] as usize {
+                    acc += x[p.cols[s] as usize] * values[s];
+                }
+                *yi = acc;
+            }
+        });
+    }
+
     fn gradient(&self, t: usize, x: &[Vec3]) -> Matrix3x2<f64> {
         let (tri, r) = (&self.triangles[t], &self.rest[t]);
         let mut wu = Vec3::zeros();
@@ -371,6 +387,10 @@ pub struct StepProblem<'a> {
     /// with the fixed nodes of `filter` eliminated and no other constraint: then the global
     /// step is one direct solve.
     pub exact: bool,
+    /// A few contact terms as a low-rank correction of the factor ([`super::low_rank`]), with
+    /// the factor exact for `values`: the global step is then one direct solve plus the
+    /// correction instead of CG (`matrix` is not used).
+    pub low_rank: Option<&'a LowRank>,
     /// Constant right-hand-side terms (contacts, friction) added to inertia and damping.
     pub rhs_extra: &'a [Vec3],
     /// Constrained directions of each vertex.
@@ -494,6 +514,32 @@ impl Projective {
                 if problem.filter[i] == Filter::Fixed {
                     *xi = problem.targets[i];
                 }
+            }
+            return PcgResult {
+                iterations: 1,
+                relative_residual: 0.0,
+                converged: true,
+            };
+        }
+        if let Some(lr) = problem.low_rank {
+            // r = rhs - A x at the free nodes, dx = B^-1 r corrected for the contact terms.
+            let (ax, b) = (&mut work.ax, &mut work.b);
+            ax.clear();
+            ax.resize(n, Vec3::zeros());
+            self.mul_values(problem.values, x, ax);
+            lr.add_penalties(x, ax);
+            b.clear();
+            b.extend((0..n).map(|i| {
+                if problem.filter[i] == Filter::Fixed {
+                    Vec3::zeros()
+                } else {
+                    rhs_const[i] + self.gather(targets, i) - ax[i]
+                }
+            }));
+            factor.solve3(b);
+            lr.correct(x, problem.targets, b, force);
+            for (xi, d) in x.iter_mut().zip(b.iter()) {
+                *xi += d;
             }
             return PcgResult {
                 iterations: 1,
@@ -747,6 +793,7 @@ mod tests {
             inertia: &s.inertia,
             damping: s.damping,
             matrix: Some(&a),
+            low_rank: None,
             values: &values,
             exact: factor_scale == 1.0,
             rhs_extra: &extra,

@@ -20,6 +20,7 @@ use super::collision::{Pair, PairKind};
 use super::contact::ObstacleContact;
 use super::contact::{self, ContactFinder};
 use super::forces::stretch::{stretch_energy, stretch_terms, StretchTerms, BLOCKS};
+use super::low_rank;
 use super::obstacle::{Obstacle, Obstacles};
 use super::pcg::{self, Aggregation, CoarseLevel, Filter, PcgResult, PcgSettings};
 use super::policy::Contact;
@@ -995,28 +996,10 @@ impl Simulator {
             'rounds: loop {
                 // The global system of this round: base matrix plus contact springs and friction,
                 // assembled only for CG global steps (a direct solve uses the factored matrix).
+                // The contact terms of this round's global system: cloth-cloth springs
+                // `k (w (x) n)(w (x) n)^T` and friction `k (I - n n^T)` at obstacle contacts, whose
+                // normal motion is prescribed by the filter.
                 let mut extra = vec![Vec3::zeros(); n];
-                let direct = pd.factor_exact && springs.is_empty() && contacts.is_empty();
-                let mut a = (!direct).then(|| projective::scalar_blocks(&pattern, &values));
-                if let Some(a) = &mut a {
-                    for s in &springs {
-                        let k = s.stiffness_h2 / h2;
-                        a.add_pair(
-                            &pattern,
-                            s.nodes,
-                            s.weights,
-                            s.normal * s.normal.transpose() * k,
-                        );
-                        let c = s.thickness - s.distance
-                            + s.normal.dot(&(0..4).fold(Vec3::zeros(), |acc, j| {
-                                acc + self.x[s.nodes[j] as usize] * s.weights[j]
-                            }));
-                        for j in 0..4 {
-                            extra[s.nodes[j] as usize] += s.normal * (k * c * s.weights[j]);
-                        }
-                    }
-                    a.finish_pairs(&pattern);
-                }
                 let mut filter: Vec<Filter> = self
                     .pinned
                     .iter()
@@ -1028,6 +1011,19 @@ impl Simulator {
                         _ => self.x[i],
                     })
                     .collect();
+                let mut spring_k = Vec::with_capacity(springs.len());
+                for s in &springs {
+                    let k = s.stiffness_h2 / h2;
+                    let c = s.thickness - s.distance
+                        + s.normal.dot(&(0..4).fold(Vec3::zeros(), |acc, j| {
+                            acc + self.x[s.nodes[j] as usize] * s.weights[j]
+                        }));
+                    for j in 0..4 {
+                        extra[s.nodes[j] as usize] += s.normal * (k * c * s.weights[j]);
+                    }
+                    spring_k.push(k);
+                }
+                let mut friction = Vec::new();
                 for c in &contacts {
                     let i = c.vertex as usize;
                     filter[i] = Filter::Normal(c.normal);
@@ -1035,12 +1031,46 @@ impl Simulator {
                     // Coulomb friction as tangential damping bounded by the previous step's normal
                     // impulse, as in the Baraff & Witkin solve (there in velocities, here in
                     // positions: the same quadratic divided by h^2).
-                    if let Some((t, g)) = self.friction_damping(c, &v_pred[i]) {
-                        let t = t * (g / h2);
-                        if let Some(a) = &mut a {
-                            a.values[pattern.diag[i] as usize] += t;
+                    let k = self
+                        .friction_damping(c, &v_pred[i])
+                        .map_or(0.0, |(_, g)| g / h2);
+                    if k > 0.0 {
+                        let t = Matrix3::identity() - c.normal * c.normal.transpose();
+                        extra[i] += t * (k * (self.x[i] + c.obstacle_velocity * h));
+                    }
+                    friction.push(k);
+                }
+                let terms = !(springs.is_empty() && contacts.is_empty());
+                // A few contact terms with the exact factor: a low-rank correction of the factor
+                // keeps the global step direct; more (or a stale factor, or a correction that is
+                // not positive definite): CG on the assembled matrix.
+                let lr = (pd.factor_exact
+                    && terms
+                    && springs.len() + contacts.len() <= low_rank::MAX_GROUPS)
+                    .then(|| {
+                        let f = pd.factor.as_ref()?;
+                        let (groups, lr_terms) =
+                            low_rank_terms(&springs, &spring_k, &contacts, &friction);
+                        low_rank::LowRank::new(f, &self.pinned, groups, lr_terms)
+                    })
+                    .flatten();
+                let mut a =
+                    (terms && lr.is_none()).then(|| projective::scalar_blocks(&pattern, &values));
+                if let Some(a) = &mut a {
+                    for (s, &k) in springs.iter().zip(&spring_k) {
+                        a.add_pair(
+                            &pattern,
+                            s.nodes,
+                            s.weights,
+                            s.normal * s.normal.transpose() * k,
+                        );
+                    }
+                    a.finish_pairs(&pattern);
+                    for (c, &k) in contacts.iter().zip(&friction) {
+                        if k > 0.0 {
+                            a.values[pattern.diag[c.vertex as usize] as usize] +=
+                                (Matrix3::identity() - c.normal * c.normal.transpose()) * k;
                         }
-                        extra[i] += t * (self.x[i] + c.obstacle_velocity * h);
                     }
                 }
                 for i in 0..n {
@@ -1056,6 +1086,7 @@ impl Simulator {
                     inertia: &inertia,
                     damping,
                     matrix: a.as_ref(),
+                    low_rank: lr.as_ref(),
                     values: &values,
                     exact: pd.factor_exact
                         && springs.is_empty()
@@ -1339,6 +1370,60 @@ struct Solved {
 
 /// CG iterations of one projective global step above which, once the rest shape changed, the
 /// factor is recomputed for the next step.
+/// The contact terms of a projective global step as rank-one terms ([`low_rank`]): per spring
+/// one group (its four weighted nodes) with the normal penalty, per obstacle contact one group
+/// (its vertex) with the normal constraint and, with friction `k > 0`, two tangential penalties.
+fn low_rank_terms(
+    springs: &[contact::ClothContact],
+    spring_k: &[f64],
+    contacts: &[ObstacleContact],
+    friction: &[f64],
+) -> (Vec<low_rank::Group>, Vec<low_rank::Term>) {
+    let mut groups = Vec::with_capacity(springs.len() + contacts.len());
+    let mut terms = Vec::new();
+    for (s, &k) in springs.iter().zip(spring_k) {
+        terms.push(low_rank::Term {
+            group: groups.len() as u32,
+            dir: s.normal,
+            inv_k: 1.0 / k,
+        });
+        groups.push(low_rank::Group {
+            nodes: s.nodes,
+            weights: s.weights,
+        });
+    }
+    for (c, &k) in contacts.iter().zip(friction) {
+        let group = groups.len() as u32;
+        groups.push(low_rank::Group {
+            nodes: [c.vertex; 4],
+            weights: [1.0, 0.0, 0.0, 0.0],
+        });
+        terms.push(low_rank::Term {
+            group,
+            dir: c.normal,
+            inv_k: 0.0,
+        });
+        if k > 0.0 {
+            // k (I - n n^T) = k (t1 t1^T + t2 t2^T).
+            let axis = if c.normal.x.abs() < 0.9 {
+                Vec3::x()
+            } else {
+                Vec3::y()
+            };
+            let t1 = c.normal.cross(&axis).normalize();
+            let t2 = c.normal.cross(&t1);
+            for dir in [t1, t2] {
+                terms.push(low_rank::Term {
+                    group,
+                    dir,
+                    inv_k: 1.0 / k,
+                });
+            }
+        }
+    }
+    (groups, terms)
+}
+
 const PD_REFACTOR_CG: usize = 3;
 /// Cap of the CG iterations of one projective global step.
 const PD_CG_CAP: usize = 10;
