@@ -1105,10 +1105,12 @@ impl Simulator {
                 let mut omega = 1.0;
                 loop {
                     let tl = Instant::now();
-                    // Only for systems without contact terms and with the exact factor: there the
-                    // global step is one fixed linear map, as the acceleration assumes (with contact
-                    // terms it diverged on the 20k-vertex t-shirt: stretch 543 vs 15 without).
-                    let chebyshev = p.projective_chebyshev > 0.0 && problem.exact;
+                    // Only for direct global steps (the exact factor, no contact terms or a few as
+                    // a low-rank correction): there the global step is one fixed linear map, as the
+                    // acceleration assumes (with CG global steps under many contact terms it
+                    // diverged on the 20k-vertex t-shirt: stretch 543 vs 15 without).
+                    let chebyshev = p.projective_chebyshev > 0.0
+                        && (problem.exact || problem.low_rank.is_some());
                     if chebyshev {
                         cur.clone_from(&x);
                     }
