@@ -14,8 +14,9 @@ use untangle::geom::Vec3;
 use untangle::mesh::{subdivide::subdivide, Garment};
 use untangle::sim::{Integrator, SimParams, Simulator, UniformThickness};
 
-fn params(iterations: usize, rho: f64, collisions: bool) -> SimParams {
+fn params(iterations: usize, rho: f64, anderson: usize, collisions: bool) -> SimParams {
     SimParams {
+        projective_anderson: anderson,
         gravity: Vec3::new(0.0, 0.0, -9.81),
         integrator: Integrator::Projective,
         projective_iterations: iterations,
@@ -53,6 +54,7 @@ fn main() {
     let mut sim = make(params(
         d.projective_iterations,
         d.projective_chebyshev,
+        d.projective_anderson,
         true,
     ));
     let v: Vec<Vec3> = m
@@ -69,19 +71,22 @@ fn main() {
         }
         sim.step(&policy);
     }
-    let settings: [(usize, f64); 9] = [
-        (10, 0.9),
-        (10, 0.0),
-        (9, 0.9),
-        (8, 0.9),
-        (8, 0.85),
-        (7, 0.9),
-        (7, 0.85),
-        (6, 0.85),
-        (5, 0.85),
+    // (iterations, Chebyshev rho, Anderson window).
+    let settings: [(usize, f64, usize); 11] = [
+        (10, 0.9, 0),
+        (10, 0.0, 0),
+        (8, 0.9, 0),
+        (7, 0.9, 0),
+        (6, 0.9, 0),
+        (10, 0.0, 5),
+        (8, 0.0, 5),
+        (7, 0.0, 5),
+        (6, 0.0, 5),
+        (5, 0.0, 5),
+        (7, 0.0, 3),
     ];
-    let solve = |x: &[Vec3], v: &[Vec3], it: usize, rho: f64| {
-        let mut s = make(params(it, rho, false));
+    let solve = |x: &[Vec3], v: &[Vec3], it: usize, rho: f64, aa: usize| {
+        let mut s = make(params(it, rho, aa, false));
         s.set_positions(x).unwrap();
         s.set_velocities(v).unwrap();
         let r = s.step(&policy);
@@ -92,11 +97,11 @@ fn main() {
         )
     };
     println!(
-        "{:>4} {:>5} {:>5} {:>10} {:>10} {:>11} {:>8}",
-        "step", "iters", "rho", "max err", "rms err", "elastic J", "stretch"
+        "{:>4} {:>5} {:>5} {:>3} {:>10} {:>10} {:>11} {:>8}",
+        "step", "iters", "rho", "aa", "max err", "rms err", "elastic J", "stretch"
     );
     for (k, x, v) in &states {
-        let (reference, e_ref, s_ref) = solve(x, v, 300, 0.0);
+        let (reference, e_ref, s_ref) = solve(x, v, 300, 0.0, 0);
         let motion: Vec<f64> = reference
             .iter()
             .zip(x)
@@ -106,11 +111,11 @@ fn main() {
         let rms = |e: &[f64]| (e.iter().map(|a| a * a).sum::<f64>() / e.len() as f64).sqrt();
         let rms_motion = rms(&motion);
         println!(
-            "{k:>4} {:>5} {:>5} {:>10} {:>10} {e_ref:>11.4e} {s_ref:>8.4}",
-            300, 0.0, "-", "-"
+            "{k:>4} {:>5} {:>5} {:>3} {:>10} {:>10} {e_ref:>11.4e} {s_ref:>8.4}",
+            300, 0.0, 0, "-", "-"
         );
-        for &(it, rho) in &settings {
-            let (y, e, s) = solve(x, v, it, rho);
+        for &(it, rho, aa) in &settings {
+            let (y, e, s) = solve(x, v, it, rho, aa);
             let err: Vec<f64> = y
                 .iter()
                 .zip(&reference)
@@ -118,7 +123,7 @@ fn main() {
                 .collect();
             let max_err = err.iter().cloned().fold(0.0, f64::max);
             println!(
-                "{k:>4} {it:>5} {rho:>5} {:>10.4} {:>10.4} {e:>11.4e} {s:>8.4}",
+                "{k:>4} {it:>5} {rho:>5} {aa:>3} {:>10.4} {:>10.4} {e:>11.4e} {s:>8.4}",
                 max_err / max_motion,
                 rms(&err) / rms_motion
             );

@@ -131,6 +131,16 @@ impl LowRank {
             .sum()
     }
 
+    /// The penalty terms' energy `sum_p k_p/2 (u_p^T x)^2` (the linear part is in the
+    /// right-hand side).
+    pub fn penalty_energy(&self, x: &[Vec3]) -> f64 {
+        self.terms
+            .iter()
+            .filter(|t| t.inv_k > 0.0)
+            .map(|t| 0.5 * self.project(t, x).powi(2) / t.inv_k)
+            .sum()
+    }
+
     /// Adds the penalty terms' `sum_p k_p u_p (u_p^T x)` to `out` (the correction's part of
     /// `A x`, all nodes included).
     pub fn add_penalties(&self, x: &[Vec3], out: &mut [Vec3]) {

@@ -21,6 +21,7 @@
 //! Results are bit-identical for any number of threads.
 
 pub mod amg;
+pub mod anderson;
 pub mod cholesky;
 pub mod collision;
 pub mod contact;

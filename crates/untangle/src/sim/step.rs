@@ -13,6 +13,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::amg::{Amg, AmgSettings};
+use super::anderson::Anderson;
 use super::cholesky::ScalarCholesky;
 use super::collision::impact_zones::ZoneMotion;
 use super::collision::{self, broad::BroadPhase, CollisionSettings, Scene};
@@ -111,6 +112,10 @@ pub struct SimParams {
     /// accelerated iterations reach Baraff & Witkin's stretch (5-6%), 10 plain ones 12%, and
     /// 0.97 overshoots (BENCHMARKS.md, "Projective dynamics").
     pub projective_chebyshev: f64,
+    /// Window `m` of the Anderson acceleration of the local/global iterations (Peng et al.
+    /// 2018, [`crate::sim::anderson`], with their energy safeguard); 0 turns it off. It replaces
+    /// Chebyshev on the steps whose global steps are direct solves.
+    pub projective_anderson: usize,
 }
 
 /// How the implicit step before collision handling is solved.
@@ -163,6 +168,7 @@ impl Default for SimParams {
             integrator: Integrator::BaraffWitkin,
             projective_iterations: 10,
             projective_chebyshev: 0.9,
+            projective_anderson: 0,
         }
     }
 }
@@ -1103,18 +1109,47 @@ impl Simulator {
                 // and the current weight; restarted with every new system.
                 let mut have_prev = false;
                 let mut omega = 1.0;
+                // Anderson acceleration (Peng et al. 2018) instead, when asked: its history, the
+                // energy of the last accepted iterate, whether `x` is an extrapolation.
+                let mut anderson = Anderson::new(p.projective_anderson);
+                let mut accepted = f64::INFINITY;
+                let mut extrapolated = false;
+                // The step energy at `x` given its membrane energy (the local step's): inertia,
+                // membrane, bending and the contact penalties with their linear part (up to a
+                // constant, the same within a round).
+                let energy_at = |x: &[Vec3], membrane: f64| -> f64 {
+                    let mut e = membrane + pd.system.bend_energy(x);
+                    for i in 0..n {
+                        e += 0.5 * inertia[i] * (x[i] - y[i]).norm_squared() - extra[i].dot(&x[i]);
+                    }
+                    e + lr.as_ref().map_or(0.0, |lr| lr.penalty_energy(x))
+                };
                 loop {
                     let tl = Instant::now();
                     // Only for direct global steps (the exact factor, no contact terms or a few as
                     // a low-rank correction): there the global step is one fixed linear map, as the
                     // acceleration assumes (with CG global steps under many contact terms it
                     // diverged on the 20k-vertex t-shirt: stretch 543 vs 15 without).
-                    let chebyshev = p.projective_chebyshev > 0.0
-                        && (problem.exact || problem.low_rank.is_some());
+                    let direct = problem.exact || problem.low_rank.is_some();
+                    let accelerate = p.projective_anderson > 0 && direct;
+                    let chebyshev = !accelerate && p.projective_chebyshev > 0.0 && direct;
                     if chebyshev {
                         cur.clone_from(&x);
                     }
-                    pd.system.project(&x, &mut work.targets);
+                    let membrane = pd.system.project(&x, &mut work.targets);
+                    if accelerate {
+                        // Peng et al.'s safeguard: an extrapolation that raised the energy is
+                        // replaced by the plain iterate, and the history restarts.
+                        let mut e = energy_at(&x, membrane);
+                        if extrapolated && e > accepted {
+                            x.copy_from_slice(anderson.plain());
+                            anderson.reset();
+                            e = energy_at(&x, pd.system.project(&x, &mut work.targets));
+                            result.rejected += 1;
+                        }
+                        accepted = e;
+                        anderson.begin(&x);
+                    }
                     let tg = Instant::now();
                     let last = result.iterations + 1 >= p.projective_iterations;
                     let check = !last
@@ -1141,6 +1176,10 @@ impl Simulator {
                         for i in 0..n {
                             x[i] = (x[i] - prev[i]) * omega + prev[i];
                         }
+                    }
+                    if accelerate {
+                        let last = result.iterations + 1 >= p.projective_iterations;
+                        extrapolated = anderson.finish(&mut x, !last);
                     }
                     std::mem::swap(&mut prev, &mut cur);
                     have_prev = chebyshev;
