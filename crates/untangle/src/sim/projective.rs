@@ -50,6 +50,9 @@ use crate::geom::Vec3;
 /// Triangles per parallel task of the local step.
 const PROJECT_CHUNK: usize = 256;
 
+/// Whether direct global steps solve for the increment with the factor in single precision.
+const SINGLE_PRECISION_INCREMENTS: bool = true;
+
 /// Per unit rest area, the weights `(arap, columns)` of the two membrane constraints that match
 /// Baraff & Witkin's stretch stiffness `k_stretch` and shear stiffness `k_shear` to second order
 /// (module docs). When `k_stretch < 2 k_shear` the column weight is 0 and the stretch stiffness
@@ -500,6 +503,36 @@ impl Projective {
         let n = self.n;
         let targets = &work.targets;
         if problem.exact && force.is_none() {
+            if SINGLE_PRECISION_INCREMENTS {
+                // The increment from the current iterate (fixed nodes at their targets): the
+                // residual `rhs - A x` per free row in double precision, evaluated while it is
+                // written into the solver's buffer, then one single-precision solve.
+                let p = &self.pattern;
+                let dx = &mut work.dx;
+                dx.resize(n, Vec3::zeros());
+                let xs = &*x;
+                factor.solve_increment_with(
+                    |i| {
+                        if problem.filter[i] == Filter::Fixed {
+                            return Vec3::zeros();
+                        }
+                        let mut ax = Vec3::zeros();
+                        for s in p.offsets[i] as usize..p.offsets[i + 1] as usize {
+                            ax += xs[p.cols[s] as usize] * problem.values[s];
+                        }
+                        rhs_const[i] + self.gather(targets, i) - ax
+                    },
+                    dx,
+                );
+                for (xi, d) in x.iter_mut().zip(dx.iter()) {
+                    *xi += d;
+                }
+                return PcgResult {
+                    iterations: 1,
+                    relative_residual: 0.0,
+                    converged: true,
+                };
+            }
             // Direct solve of the eliminated system: fixed rows `d x = d target`, free rows
             // `B_ff x_f = rhs_f - B_fc target_c`.
             let p = &self.pattern;
