@@ -458,7 +458,10 @@ impl Projective {
     /// The constant right-hand side `M' y / h^2 + (beta/h) L x_n + extra`.
     pub fn constant_rhs(&self, problem: &StepProblem) -> Vec<Vec3> {
         let mut lx = vec![Vec3::zeros(); self.n];
-        self.mul_stiffness(problem.x0, &mut lx);
+        // Without stiffness damping (the simulator's case) `L x_n` is not needed.
+        if problem.damping != 0.0 {
+            self.mul_stiffness(problem.x0, &mut lx);
+        }
         (0..self.n)
             .map(|i| {
                 problem.y[i] * problem.inertia[i] + lx[i] * problem.damping + problem.rhs_extra[i]

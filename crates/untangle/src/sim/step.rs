@@ -991,7 +991,7 @@ impl Simulator {
         // Constraint forces `A x - rhs` of the last global step that computed them.
         let mut force = vec![Vec3::zeros(); n];
         let mut releases = 0;
-        let pattern = pd.system.pattern().clone();
+        let pattern = pd.system.pattern();
         let h2 = h * h;
         let mut work = projective::Workspace::default();
         // Chebyshev's iterate before the last (`prev`) and the last (`cur`); reused buffers.
