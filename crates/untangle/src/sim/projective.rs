@@ -725,8 +725,6 @@ mod tests {
         }
     }
 
-    /// The membrane weights reproduce Baraff & Witkin's stretch/shear energy to second order:
-    /// for a small strain, the two energies agree up to O(strain^3).
     proptest! {
         /// The membrane energy the local step returns (distance to its own projections) equals
         /// the one `elastic_energy` computes from the singular values (minus bending).
@@ -740,6 +738,8 @@ mod tests {
         }
     }
 
+    /// The membrane weights reproduce Baraff & Witkin's stretch/shear energy to second order:
+    /// for a small strain, the two energies agree up to O(strain^3).
     #[test]
     fn membrane_matches_baraff_witkin_to_second_order() {
         use crate::geom::Vec2;

@@ -1061,17 +1061,17 @@ impl Simulator {
                     })
                     .flatten();
                 let mut a =
-                    (terms && lr.is_none()).then(|| projective::scalar_blocks(&pattern, &values));
+                    (terms && lr.is_none()).then(|| projective::scalar_blocks(pattern, &values));
                 if let Some(a) = &mut a {
                     for (s, &k) in springs.iter().zip(&spring_k) {
                         a.add_pair(
-                            &pattern,
+                            pattern,
                             s.nodes,
                             s.weights,
                             s.normal * s.normal.transpose() * k,
                         );
                     }
-                    a.finish_pairs(&pattern);
+                    a.finish_pairs(pattern);
                     for (c, &k) in contacts.iter().zip(&friction) {
                         if k > 0.0 {
                             a.values[pattern.diag[c.vertex as usize] as usize] +=
