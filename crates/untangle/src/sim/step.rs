@@ -106,11 +106,11 @@ pub struct SimParams {
     /// Local/global iterations per step of [`Integrator::Projective`].
     pub projective_iterations: usize,
     /// Spectral-radius estimate `rho` of the Chebyshev acceleration of the local/global
-    /// iterations (Wang 2015); 0 turns it off. Applied only to steps whose global system has no
-    /// contact terms and whose factor is current (no rest edit since). Default 0.9: on the
-    /// t-shirt benchmark 10
-    /// accelerated iterations reach Baraff & Witkin's stretch (5-6%), 10 plain ones 12%, and
-    /// 0.97 overshoots (BENCHMARKS.md, "Projective dynamics").
+    /// iterations (Wang 2015); 0 turns it off. Applied only to steps whose global steps are
+    /// direct solves: the factor is current (no rest edit since) and the contact terms, if any,
+    /// are few enough for a low-rank correction ([`crate::sim::low_rank`]). Default 0.9: on the
+    /// t-shirt benchmark 10 accelerated iterations reach Baraff & Witkin's stretch (5-6%), 10
+    /// plain ones 12%, and 0.97 overshoots (BENCHMARKS.md, "Projective dynamics").
     pub projective_chebyshev: f64,
     /// Window `m` of the Anderson acceleration of the local/global iterations (Peng et al.
     /// 2018, [`crate::sim::anderson`], with their energy safeguard); 0 turns it off. It replaces
