@@ -311,9 +311,30 @@ impl Projective {
     /// The projections of the local step (Bouaziz et al. Sec. 4): per triangle the weighted
     /// target `area (w_arap R + w_col U)` of its deformation gradient at `x` ([`project_orthonormal`],
     /// [`project_unit_columns`]), into `targets` (resized). Parallel over chunks of triangles.
-    /// Returns the membrane energy at `x`, `sum_t area/2 (w_arap |F - R|^2 + w_col |F - U|^2)`
-    /// (the distance to the constraint sets, summed in a fixed order).
-    pub fn project(&self, x: &[Vec3], targets: &mut Vec<Matrix3x2<f64>>) -> f64 {
+    pub fn project(&self, x: &[Vec3], targets: &mut Vec<Matrix3x2<f64>>) {
+        let (wa, wc) = self.weights;
+        targets.resize(self.triangles.len(), Matrix3x2::zeros());
+        targets
+            .par_chunks_mut(PROJECT_CHUNK)
+            .enumerate()
+            .for_each(|(c, ts)| {
+                for (k, p) in ts.iter_mut().enumerate() {
+                    let t = c * PROJECT_CHUNK + k;
+                    let f = self.gradient(t, x);
+                    let r = project_orthonormal(&f);
+                    let area = self.rest[t].area;
+                    *p = r * (wa * area);
+                    if wc > 0.0 {
+                        *p += project_unit_columns(&f, &r) * (wc * area);
+                    }
+                }
+            });
+    }
+
+    /// [`Projective::project`] that also returns the membrane energy at `x`,
+    /// `sum_t area/2 (w_arap |F - R|^2 + w_col |F - U|^2)` (the distance to the constraint sets,
+    /// summed in a fixed order), for the safeguard of the Anderson acceleration.
+    pub fn project_energy(&self, x: &[Vec3], targets: &mut Vec<Matrix3x2<f64>>) -> f64 {
         let (wa, wc) = self.weights;
         targets.resize(self.triangles.len(), Matrix3x2::zeros());
         let energies: Vec<f64> = targets
@@ -732,7 +753,10 @@ mod tests {
         fn local_step_energy_matches_singular_values(seed in 0u64..1000, amp in 0.0f64..0.2) {
             let s = small(4, 3, seed, amp, Elastic { stretch: 50.0, shear: 8.0, bend: 1e-4 });
             let mut targets = Vec::new();
-            let e = s.system.project(&s.y, &mut targets);
+            let e = s.system.project_energy(&s.y, &mut targets);
+            let mut plain = Vec::new();
+            s.system.project(&s.y, &mut plain);
+            prop_assert_eq!(&plain, &targets);
             let want = s.system.elastic_energy(&s.y) - s.system.bend_energy(&s.y);
             prop_assert!((e - want).abs() <= 1e-9 * (1.0 + want.abs()), "{} vs {}", e, want);
         }

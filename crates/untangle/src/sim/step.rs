@@ -1136,19 +1136,21 @@ impl Simulator {
                     if chebyshev {
                         cur.clone_from(&x);
                     }
-                    let membrane = pd.system.project(&x, &mut work.targets);
                     if accelerate {
                         // Peng et al.'s safeguard: an extrapolation that raised the energy is
                         // replaced by the plain iterate, and the history restarts.
+                        let membrane = pd.system.project_energy(&x, &mut work.targets);
                         let mut e = energy_at(&x, membrane);
                         if extrapolated && e > accepted {
                             x.copy_from_slice(anderson.plain());
                             anderson.reset();
-                            e = energy_at(&x, pd.system.project(&x, &mut work.targets));
+                            e = energy_at(&x, pd.system.project_energy(&x, &mut work.targets));
                             result.rejected += 1;
                         }
                         accepted = e;
                         anderson.begin(&x);
+                    } else {
+                        pd.system.project(&x, &mut work.targets);
                     }
                     let tg = Instant::now();
                     let last = result.iterations + 1 >= p.projective_iterations;
