@@ -2,7 +2,8 @@
 //! refined `LEVEL` times (2: 4,950 vertices, 3: 19,566), pinned at the shoulders, factored
 //! once; then `REPS` solves of three right-hand sides with faer's sparse-Cholesky solve called
 //! directly (`LltRef::solve_in_place_with_conj`) and through `ScalarCholesky::solve_with` (as
-//! the simulator's global step calls it: right-hand side evaluated in parallel, then faer),
+//! the simulator's global step calls it: right-hand side evaluated in parallel, then faer) and
+//! through `ScalarCholesky::solve_increment_with` (the same with the factor in single precision),
 //! interleaved in rounds; and `REPS` local steps (projection + per-vertex gather). Prints per
 //! solve / per local step the process CPU time (less sensitive to other processes than wall
 //! clock) and the wall time, the factor size, and the largest difference between the two
@@ -146,8 +147,10 @@ fn main() {
     };
     let mut xa = vec![Vec3::zeros(); n];
     let mut xb = vec![Vec3::zeros(); n];
+    let mut xc = vec![Vec3::zeros(); n];
     let mut buf = Vec::new();
     let (mut cpu_a, mut cpu_b, mut wall_a, mut wall_b) = (0.0, 0.0, 0.0, 0.0);
+    let (mut cpu_c, mut wall_c) = (0.0, 0.0);
     let rounds = 10;
     let per = reps.div_ceil(rounds);
     // Everything inside the pool, as the simulator's iterations run.
@@ -165,6 +168,12 @@ fn main() {
             }
             cpu_b += thread_cpu() - c;
             wall_b += w.elapsed().as_secs_f64();
+            let (c, w) = (thread_cpu(), Instant::now());
+            for _ in 0..per {
+                chol.solve_increment_with(|i| b[i], &mut xc);
+            }
+            cpu_c += thread_cpu() - c;
+            wall_c += w.elapsed().as_secs_f64();
         }
     });
     let diff = xa
@@ -201,6 +210,17 @@ fn main() {
         wall_b / total * 1e3,
         cpu_b / total * 1e3,
         diff
+    );
+    let diff32 = xa
+        .iter()
+        .zip(&xc)
+        .map(|(a, c)| (a - c).norm() / (1.0 + a.norm()))
+        .fold(0.0, f64::max);
+    println!(
+        "ScalarCholesky::solve_increment_with (single precision): {:.3} ms wall, {:.3} ms CPU (process) per solve; max rel. difference {:.1e}",
+        wall_c / total * 1e3,
+        cpu_c / total * 1e3,
+        diff32
     );
     println!(
         "local step (project + gather): {:.3} ms wall, {:.3} ms CPU (process) per iteration ({sink:.3e})",

@@ -61,6 +61,17 @@ fn hanging_sheet_settles_with_small_stretch_projective() {
     });
 }
 
+/// The same with projective dynamics accelerated by Anderson (`untangle::sim::anderson`,
+/// window 5) instead of Chebyshev.
+#[test]
+fn hanging_sheet_settles_with_small_stretch_projective_anderson() {
+    hanging_sheet_settles(SimParams {
+        integrator: Integrator::Projective,
+        projective_anderson: 5,
+        ..SimParams::default()
+    });
+}
+
 /// A sheet pinned along one edge hangs down and settles with small stretch and dissipated
 /// energy, with the integrator and material of `params`.
 fn hanging_sheet_settles(params: SimParams) {

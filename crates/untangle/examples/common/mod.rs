@@ -37,7 +37,7 @@ pub fn arg(i: usize, default: usize) -> usize {
 /// The integrator picked by the environment: `UNTANGLE_INTEGRATOR=projective` (or `pd`) selects
 /// projective dynamics, anything else (or unset) Baraff & Witkin; `UNTANGLE_PD_ITERATIONS` sets
 /// the local/global iterations per step (default: the library's), `UNTANGLE_PD_CHEBYSHEV` the
-/// Chebyshev spectral radius (0 = off).
+/// Chebyshev spectral radius (0 = off), `UNTANGLE_PD_ANDERSON` the Anderson window (0 = off).
 pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimParams {
     use untangle::sim::Integrator;
     if let Ok(s) = std::env::var("UNTANGLE_INTEGRATOR") {
@@ -57,6 +57,12 @@ pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimP
         .and_then(|s| s.parse().ok())
     {
         p.projective_chebyshev = r;
+    }
+    if let Some(m) = std::env::var("UNTANGLE_PD_ANDERSON")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        p.projective_anderson = m;
     }
     p
 }

@@ -46,10 +46,14 @@ pub struct ScalarCholesky {
     symbolic: SymbolicCholesky<usize>,
     values: Vec<f64>,
     factor: Vec<f64>,
+    /// The factor rounded to single precision (half the bytes a solve reads), for increments.
+    factor32: Vec<f32>,
     factored: bool,
     scratch: MemBuffer,
     /// Scratch of the solves: faer's stack and the right-hand sides column by column.
     solve_scratch: std::sync::Mutex<SolveScratch>,
+    /// The same for the single-precision solves.
+    solve_scratch32: std::sync::Mutex<(MemBuffer, MemBuffer, Vec<f32>)>,
 }
 
 impl std::fmt::Debug for ScalarCholesky {
@@ -109,10 +113,16 @@ impl ScalarCholesky {
             MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(2, Par::Seq)).ok()?;
         let solve_scratch_x =
             MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)).ok()?;
+        let scratch32 = (
+            MemBuffer::try_new(symbolic.solve_in_place_scratch::<f32>(1, Par::Seq)).ok()?,
+            MemBuffer::try_new(symbolic.solve_in_place_scratch::<f32>(2, Par::Seq)).ok()?,
+            Vec::new(),
+        );
         Some(ScalarCholesky {
             n,
             values: vec![0.0; row_idx.len()],
             factor: vec![0.0; symbolic.len_val()],
+            factor32: Vec::new(),
             col_ptr,
             row_idx,
             source,
@@ -120,6 +130,7 @@ impl ScalarCholesky {
             factored: false,
             scratch,
             solve_scratch: std::sync::Mutex::new((solve_scratch_x, solve_scratch, Vec::new())),
+            solve_scratch32: std::sync::Mutex::new(scratch32),
         })
     }
 
@@ -173,6 +184,10 @@ impl ScalarCholesky {
             .is_ok()
             && self.factor.iter().all(|v| v.is_finite());
         self.factored = ok;
+        self.factor32.clear();
+        if ok {
+            self.factor32.extend(self.factor.iter().map(|&v| v as f32));
+        }
         ok
     }
 
@@ -214,6 +229,62 @@ impl ScalarCholesky {
                 }
             });
         self.solve_columns(stack_x, stack, buf, out);
+    }
+
+    /// [`ScalarCholesky::solve_with`] with the factor in single precision: for increments
+    /// `dx = B^-1 r` of an iteration that recomputes its residual `r` in double precision, so
+    /// the rounding (relative ~1e-7 times the condition number, of the increment only) does not
+    /// accumulate: the iteration's fixed point is the double-precision one. Reads half the
+    /// bytes of the factor.
+    pub fn solve_increment_with<F>(&self, rhs: F, out: &mut [Vec3])
+    where
+        F: Fn(usize) -> Vec3 + Sync,
+    {
+        if !self.factored {
+            return;
+        }
+        let n = self.n;
+        let mut guard = self
+            .solve_scratch32
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        let (stack_x, stack, buf) = &mut *guard;
+        buf.resize(3 * n, 0.0);
+        let (bx, rest) = buf.split_at_mut(n);
+        let (by, bz) = rest.split_at_mut(n);
+        bx.par_chunks_mut(RHS_CHUNK)
+            .zip(by.par_chunks_mut(RHS_CHUNK))
+            .zip(bz.par_chunks_mut(RHS_CHUNK))
+            .enumerate()
+            .for_each(|(c, ((xs, ys), zs))| {
+                for k in 0..xs.len() {
+                    let v = rhs(c * RHS_CHUNK + k);
+                    (xs[k], ys[k], zs[k]) = (v.x as f32, v.y as f32, v.z as f32);
+                }
+            });
+        let llt = LltRef::<'_, usize, f32>::new(&self.symbolic, &self.factor32);
+        let (bx, byz) = buf.split_at_mut(n);
+        rayon::join(
+            || {
+                llt.solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(bx, n, 1),
+                    Par::Seq,
+                    MemStack::new(stack_x),
+                )
+            },
+            || {
+                llt.solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(byz, n, 2),
+                    Par::Seq,
+                    MemStack::new(stack),
+                )
+            },
+        );
+        for (i, v) in out.iter_mut().enumerate() {
+            *v = Vec3::new(buf[i] as f64, buf[n + i] as f64, buf[2 * n + i] as f64);
+        }
     }
 
     /// The solve scratch (two faer stacks and the `n x 3` column buffer, sized), or `None`
@@ -261,6 +332,35 @@ impl ScalarCholesky {
         for (i, v) in out.iter_mut().enumerate() {
             *v = Vec3::new(buf[i], buf[n + i], buf[2 * n + i]);
         }
+    }
+
+    /// Solves `B X = R` in place for `k` scalar columns stored column-major in `cols` (`n x k`):
+    /// the first `k / 2` and the other columns as two faer solves side by side (always split the
+    /// same way, so the result does not depend on the thread count). Without a factor `cols` is
+    /// left unchanged.
+    pub fn solve_many(&self, cols: &mut [f64]) {
+        let n = self.n;
+        if !self.factored || n == 0 {
+            return;
+        }
+        let k = cols.len() / n;
+        let llt = LltRef::<'_, usize, f64>::new(&self.symbolic, &self.factor);
+        let solve = |c: &mut [f64]| {
+            let m = c.len() / n;
+            if m == 0 {
+                return;
+            }
+            let mut stack =
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(m, Par::Seq));
+            llt.solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(c, n, m),
+                Par::Seq,
+                MemStack::new(&mut stack),
+            );
+        };
+        let (a, b) = cols[..k * n].split_at_mut(k / 2 * n);
+        rayon::join(|| solve(a), || solve(b));
     }
 
     /// The preconditioner `out = S (B^-1 (x) I3) S r`; returns `r . out`. Without a factor,
@@ -345,6 +445,13 @@ mod tests {
                 let mut y = vec![Vec3::zeros(); n];
                 chol.solve_with(|i| r[i], &mut y);
                 prop_assert_eq!(&x, &y);
+                // Single precision: within f32 rounding times the (small) condition number.
+                let mut z = vec![Vec3::zeros(); n];
+                chol.solve_increment_with(|i| r[i], &mut z);
+                for i in 0..n {
+                    prop_assert!((z[i] - x[i]).norm() <= 1e-5 * (1.0 + x[i].norm()),
+                        "{} vs {}", z[i], x[i]);
+                }
                 for c in 0..3 {
                     let b = nalgebra::DVector::from_iterator(n, r.iter().map(|v| v[c]));
                     let want = lu.solve(&b).unwrap();

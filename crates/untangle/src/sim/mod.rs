@@ -21,10 +21,12 @@
 //! Results are bit-identical for any number of threads.
 
 pub mod amg;
+pub mod anderson;
 pub mod cholesky;
 pub mod collision;
 pub mod contact;
 pub mod forces;
+pub mod low_rank;
 pub mod obstacle;
 pub mod pcg;
 pub mod policy;

@@ -41,6 +41,7 @@ use rayon::prelude::*;
 
 use super::cholesky::ScalarCholesky;
 use super::forces::stretch::TriangleRest;
+use super::low_rank::LowRank;
 use super::pcg::{self, Filter, PcgResult, PcgSettings};
 use super::rest::RestShape;
 use super::sparse::{BsrMatrix, BsrPattern, CHUNK};
@@ -48,6 +49,9 @@ use crate::geom::Vec3;
 
 /// Triangles per parallel task of the local step.
 const PROJECT_CHUNK: usize = 256;
+
+/// Whether direct global steps solve for the increment with the factor in single precision.
+const SINGLE_PRECISION_INCREMENTS: bool = true;
 
 /// Per unit rest area, the weights `(arap, columns)` of the two membrane constraints that match
 /// Baraff & Witkin's stretch stiffness `k_stretch` and shear stiffness `k_shear` to second order
@@ -277,6 +281,21 @@ impl Projective {
         });
     }
 
+    /// `y = V x` for the scalar matrix with `values` per pattern slot (each coordinate).
+    pub fn mul_values(&self, values: &[f64], x: &[Vec3], y: &mut [Vec3]) {
+        let p = &self.pattern;
+        y.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
+            for (k, yi) in ys.iter_mut().enumerate() {
+                let i = c * CHUNK + k;
+                let mut acc = Vec3::zeros();
+                for s in p.offsets[i] as usize..p.offsets[i + 1] as usize {
+                    acc += x[p.cols[s] as usize] * values[s];
+                }
+                *yi = acc;
+            }
+        });
+    }
+
     fn gradient(&self, t: usize, x: &[Vec3]) -> Matrix3x2<f64> {
         let (tri, r) = (&self.triangles[t], &self.rest[t]);
         let mut wu = Vec3::zeros();
@@ -310,6 +329,43 @@ impl Projective {
                     }
                 }
             });
+    }
+
+    /// [`Projective::project`] that also returns the membrane energy at `x`,
+    /// `sum_t area/2 (w_arap |F - R|^2 + w_col |F - U|^2)` (the distance to the constraint sets,
+    /// summed in a fixed order), for the safeguard of the Anderson acceleration.
+    pub fn project_energy(&self, x: &[Vec3], targets: &mut Vec<Matrix3x2<f64>>) -> f64 {
+        let (wa, wc) = self.weights;
+        targets.resize(self.triangles.len(), Matrix3x2::zeros());
+        let energies: Vec<f64> = targets
+            .par_chunks_mut(PROJECT_CHUNK)
+            .enumerate()
+            .map(|(c, ts)| {
+                let mut e = 0.0;
+                for (k, p) in ts.iter_mut().enumerate() {
+                    let t = c * PROJECT_CHUNK + k;
+                    let f = self.gradient(t, x);
+                    let r = project_orthonormal(&f);
+                    let area = self.rest[t].area;
+                    *p = r * (wa * area);
+                    let mut et = wa * (f - r).norm_squared();
+                    if wc > 0.0 {
+                        let u = project_unit_columns(&f, &r);
+                        *p += u * (wc * area);
+                        et += wc * (f - u).norm_squared();
+                    }
+                    e += 0.5 * area * et;
+                }
+                e
+            })
+            .collect();
+        energies.iter().sum()
+    }
+
+    /// The bending energy at `x`, `kb/2 sum_e |sum_i k_ei x_i|^2` (quadratic, in the factor).
+    pub fn bend_energy(&self, x: &[Vec3]) -> f64 {
+        let kb = self.elastic.bend;
+        self.bend.iter().map(|s| s.energy(x, kb)).sum()
     }
 
     /// Vertex `i`'s share `sum_t S_t^T A_t^T p_t` of the local step's right-hand side, from the
@@ -371,6 +427,10 @@ pub struct StepProblem<'a> {
     /// with the fixed nodes of `filter` eliminated and no other constraint: then the global
     /// step is one direct solve.
     pub exact: bool,
+    /// A few contact terms as a low-rank correction of the factor ([`super::low_rank`]), with
+    /// the factor exact for `values`: the global step is then one direct solve plus the
+    /// correction instead of CG (`matrix` is not used).
+    pub low_rank: Option<&'a LowRank>,
     /// Constant right-hand-side terms (contacts, friction) added to inertia and damping.
     pub rhs_extra: &'a [Vec3],
     /// Constrained directions of each vertex.
@@ -410,13 +470,19 @@ pub struct ProjectiveResult {
     pub global_ms: f64,
     /// Milliseconds spent factoring.
     pub factor_ms: f64,
+    /// Anderson extrapolations rejected by the energy safeguard (each costs one more local
+    /// step).
+    pub rejected: usize,
 }
 
 impl Projective {
     /// The constant right-hand side `M' y / h^2 + (beta/h) L x_n + extra`.
     pub fn constant_rhs(&self, problem: &StepProblem) -> Vec<Vec3> {
         let mut lx = vec![Vec3::zeros(); self.n];
-        self.mul_stiffness(problem.x0, &mut lx);
+        // Without stiffness damping (the simulator's case) `L x_n` is not needed.
+        if problem.damping != 0.0 {
+            self.mul_stiffness(problem.x0, &mut lx);
+        }
         (0..self.n)
             .map(|i| {
                 problem.y[i] * problem.inertia[i] + lx[i] * problem.damping + problem.rhs_extra[i]
@@ -461,6 +527,36 @@ impl Projective {
         let n = self.n;
         let targets = &work.targets;
         if problem.exact && force.is_none() {
+            if SINGLE_PRECISION_INCREMENTS {
+                // The increment from the current iterate (fixed nodes at their targets): the
+                // residual `rhs - A x` per free row in double precision, evaluated while it is
+                // written into the solver's buffer, then one single-precision solve.
+                let p = &self.pattern;
+                let dx = &mut work.dx;
+                dx.resize(n, Vec3::zeros());
+                let xs = &*x;
+                factor.solve_increment_with(
+                    |i| {
+                        if problem.filter[i] == Filter::Fixed {
+                            return Vec3::zeros();
+                        }
+                        let mut ax = Vec3::zeros();
+                        for s in p.offsets[i] as usize..p.offsets[i + 1] as usize {
+                            ax += xs[p.cols[s] as usize] * problem.values[s];
+                        }
+                        rhs_const[i] + self.gather(targets, i) - ax
+                    },
+                    dx,
+                );
+                for (xi, d) in x.iter_mut().zip(dx.iter()) {
+                    *xi += d;
+                }
+                return PcgResult {
+                    iterations: 1,
+                    relative_residual: 0.0,
+                    converged: true,
+                };
+            }
             // Direct solve of the eliminated system: fixed rows `d x = d target`, free rows
             // `B_ff x_f = rhs_f - B_fc target_c`.
             let p = &self.pattern;
@@ -494,6 +590,32 @@ impl Projective {
                 if problem.filter[i] == Filter::Fixed {
                     *xi = problem.targets[i];
                 }
+            }
+            return PcgResult {
+                iterations: 1,
+                relative_residual: 0.0,
+                converged: true,
+            };
+        }
+        if let Some(lr) = problem.low_rank {
+            // r = rhs - A x at the free nodes, dx = B^-1 r corrected for the contact terms.
+            let (ax, b) = (&mut work.ax, &mut work.b);
+            ax.clear();
+            ax.resize(n, Vec3::zeros());
+            self.mul_values(problem.values, x, ax);
+            lr.add_penalties(x, ax);
+            b.clear();
+            b.extend((0..n).map(|i| {
+                if problem.filter[i] == Filter::Fixed {
+                    Vec3::zeros()
+                } else {
+                    rhs_const[i] + self.gather(targets, i) - ax[i]
+                }
+            }));
+            factor.solve3(b);
+            lr.correct(x, problem.targets, b, force);
+            for (xi, d) in x.iter_mut().zip(b.iter()) {
+                *xi += d;
             }
             return PcgResult {
                 iterations: 1,
@@ -624,6 +746,22 @@ mod tests {
         }
     }
 
+    proptest! {
+        /// The membrane energy the local step returns (distance to its own projections) equals
+        /// the one `elastic_energy` computes from the singular values (minus bending).
+        #[test]
+        fn local_step_energy_matches_singular_values(seed in 0u64..1000, amp in 0.0f64..0.2) {
+            let s = small(4, 3, seed, amp, Elastic { stretch: 50.0, shear: 8.0, bend: 1e-4 });
+            let mut targets = Vec::new();
+            let e = s.system.project_energy(&s.y, &mut targets);
+            let mut plain = Vec::new();
+            s.system.project(&s.y, &mut plain);
+            prop_assert_eq!(&plain, &targets);
+            let want = s.system.elastic_energy(&s.y) - s.system.bend_energy(&s.y);
+            prop_assert!((e - want).abs() <= 1e-9 * (1.0 + want.abs()), "{} vs {}", e, want);
+        }
+    }
+
     /// The membrane weights reproduce Baraff & Witkin's stretch/shear energy to second order:
     /// for a small strain, the two energies agree up to O(strain^3).
     #[test]
@@ -747,6 +885,7 @@ mod tests {
             inertia: &s.inertia,
             damping: s.damping,
             matrix: Some(&a),
+            low_rank: None,
             values: &values,
             exact: factor_scale == 1.0,
             rhs_extra: &extra,

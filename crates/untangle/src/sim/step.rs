@@ -13,6 +13,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::amg::{Amg, AmgSettings};
+use super::anderson::Anderson;
 use super::cholesky::ScalarCholesky;
 use super::collision::impact_zones::ZoneMotion;
 use super::collision::{self, broad::BroadPhase, CollisionSettings, Scene};
@@ -20,6 +21,7 @@ use super::collision::{Pair, PairKind};
 use super::contact::ObstacleContact;
 use super::contact::{self, ContactFinder};
 use super::forces::stretch::{stretch_energy, stretch_terms, StretchTerms, BLOCKS};
+use super::low_rank;
 use super::obstacle::{Obstacle, Obstacles};
 use super::pcg::{self, Aggregation, CoarseLevel, Filter, PcgResult, PcgSettings};
 use super::policy::Contact;
@@ -104,12 +106,16 @@ pub struct SimParams {
     /// Local/global iterations per step of [`Integrator::Projective`].
     pub projective_iterations: usize,
     /// Spectral-radius estimate `rho` of the Chebyshev acceleration of the local/global
-    /// iterations (Wang 2015); 0 turns it off. Applied only to steps whose global system has no
-    /// contact terms and whose factor is current (no rest edit since). Default 0.9: on the
-    /// t-shirt benchmark 10
-    /// accelerated iterations reach Baraff & Witkin's stretch (5-6%), 10 plain ones 12%, and
-    /// 0.97 overshoots (BENCHMARKS.md, "Projective dynamics").
+    /// iterations (Wang 2015); 0 turns it off. Applied only to steps whose global steps are
+    /// direct solves: the factor is current (no rest edit since) and the contact terms, if any,
+    /// are few enough for a low-rank correction ([`crate::sim::low_rank`]). Default 0.9: on the
+    /// t-shirt benchmark 10 accelerated iterations reach Baraff & Witkin's stretch (5-6%), 10
+    /// plain ones 12%, and 0.97 overshoots (BENCHMARKS.md, "Projective dynamics").
     pub projective_chebyshev: f64,
+    /// Window `m` of the Anderson acceleration of the local/global iterations (Peng et al.
+    /// 2018, [`crate::sim::anderson`], with their energy safeguard); 0 turns it off. It replaces
+    /// Chebyshev on the steps whose global steps are direct solves.
+    pub projective_anderson: usize,
 }
 
 /// How the implicit step before collision handling is solved.
@@ -162,6 +168,7 @@ impl Default for SimParams {
             integrator: Integrator::BaraffWitkin,
             projective_iterations: 10,
             projective_chebyshev: 0.9,
+            projective_anderson: 0,
         }
     }
 }
@@ -1051,7 +1058,7 @@ impl Simulator {
         // Constraint forces `A x - rhs` of the last global step that computed them.
         let mut force = vec![Vec3::zeros(); n];
         let mut releases = 0;
-        let pattern = pd.system.pattern().clone();
+        let pattern = pd.system.pattern();
         let h2 = h * h;
         let mut work = projective::Workspace::default();
         // Chebyshev's iterate before the last (`prev`) and the last (`cur`); reused buffers.
@@ -1062,28 +1069,10 @@ impl Simulator {
             'rounds: loop {
                 // The global system of this round: base matrix plus contact springs and friction,
                 // assembled only for CG global steps (a direct solve uses the factored matrix).
+                // The contact terms of this round's global system: cloth-cloth springs
+                // `k (w (x) n)(w (x) n)^T` and friction `k (I - n n^T)` at obstacle contacts, whose
+                // normal motion is prescribed by the filter.
                 let mut extra = vec![Vec3::zeros(); n];
-                let direct = pd.factor_exact && springs.is_empty() && contacts.is_empty();
-                let mut a = (!direct).then(|| projective::scalar_blocks(&pattern, &values));
-                if let Some(a) = &mut a {
-                    for s in &springs {
-                        let k = s.stiffness_h2 / h2;
-                        a.add_pair(
-                            &pattern,
-                            s.nodes,
-                            s.weights,
-                            s.normal * s.normal.transpose() * k,
-                        );
-                        let c = s.thickness - s.distance
-                            + s.normal.dot(&(0..4).fold(Vec3::zeros(), |acc, j| {
-                                acc + self.x[s.nodes[j] as usize] * s.weights[j]
-                            }));
-                        for j in 0..4 {
-                            extra[s.nodes[j] as usize] += s.normal * (k * c * s.weights[j]);
-                        }
-                    }
-                    a.finish_pairs(&pattern);
-                }
                 let mut filter: Vec<Filter> = self
                     .pinned
                     .iter()
@@ -1095,6 +1084,19 @@ impl Simulator {
                         _ => self.x[i],
                     })
                     .collect();
+                let mut spring_k = Vec::with_capacity(springs.len());
+                for s in &springs {
+                    let k = s.stiffness_h2 / h2;
+                    let c = s.thickness - s.distance
+                        + s.normal.dot(&(0..4).fold(Vec3::zeros(), |acc, j| {
+                            acc + self.x[s.nodes[j] as usize] * s.weights[j]
+                        }));
+                    for j in 0..4 {
+                        extra[s.nodes[j] as usize] += s.normal * (k * c * s.weights[j]);
+                    }
+                    spring_k.push(k);
+                }
+                let mut friction = Vec::new();
                 for c in &contacts {
                     let i = c.vertex as usize;
                     filter[i] = Filter::Normal(c.normal);
@@ -1102,12 +1104,46 @@ impl Simulator {
                     // Coulomb friction as tangential damping bounded by the previous step's normal
                     // impulse, as in the Baraff & Witkin solve (there in velocities, here in
                     // positions: the same quadratic divided by h^2).
-                    if let Some((t, g)) = self.friction_damping(c, &v_pred[i]) {
-                        let t = t * (g / h2);
-                        if let Some(a) = &mut a {
-                            a.values[pattern.diag[i] as usize] += t;
+                    let k = self
+                        .friction_damping(c, &v_pred[i])
+                        .map_or(0.0, |(_, g)| g / h2);
+                    if k > 0.0 {
+                        let t = Matrix3::identity() - c.normal * c.normal.transpose();
+                        extra[i] += t * (k * (self.x[i] + c.obstacle_velocity * h));
+                    }
+                    friction.push(k);
+                }
+                let terms = !(springs.is_empty() && contacts.is_empty());
+                // A few contact terms with the exact factor: a low-rank correction of the factor
+                // keeps the global step direct; more (or a stale factor, or a correction that is
+                // not positive definite): CG on the assembled matrix.
+                let lr = (pd.factor_exact
+                    && terms
+                    && springs.len() + contacts.len() <= low_rank::MAX_GROUPS)
+                    .then(|| {
+                        let f = pd.factor.as_ref()?;
+                        let (groups, lr_terms) =
+                            low_rank_terms(&springs, &spring_k, &contacts, &friction);
+                        low_rank::LowRank::new(f, &self.pinned, groups, lr_terms)
+                    })
+                    .flatten();
+                let mut a =
+                    (terms && lr.is_none()).then(|| projective::scalar_blocks(pattern, &values));
+                if let Some(a) = &mut a {
+                    for (s, &k) in springs.iter().zip(&spring_k) {
+                        a.add_pair(
+                            pattern,
+                            s.nodes,
+                            s.weights,
+                            s.normal * s.normal.transpose() * k,
+                        );
+                    }
+                    a.finish_pairs(pattern);
+                    for (c, &k) in contacts.iter().zip(&friction) {
+                        if k > 0.0 {
+                            a.values[pattern.diag[c.vertex as usize] as usize] +=
+                                (Matrix3::identity() - c.normal * c.normal.transpose()) * k;
                         }
-                        extra[i] += t * (self.x[i] + c.obstacle_velocity * h);
                     }
                 }
                 for i in 0..n {
@@ -1123,6 +1159,7 @@ impl Simulator {
                     inertia: &inertia,
                     damping,
                     matrix: a.as_ref(),
+                    low_rank: lr.as_ref(),
                     values: &values,
                     exact: pd.factor_exact
                         && springs.is_empty()
@@ -1139,16 +1176,49 @@ impl Simulator {
                 // and the current weight; restarted with every new system.
                 let mut have_prev = false;
                 let mut omega = 1.0;
+                // Anderson acceleration (Peng et al. 2018) instead, when asked: its history, the
+                // energy of the last accepted iterate, whether `x` is an extrapolation.
+                let mut anderson = Anderson::new(p.projective_anderson);
+                let mut accepted = f64::INFINITY;
+                let mut extrapolated = false;
+                // The step energy at `x` given its membrane energy (the local step's): inertia,
+                // membrane, bending and the contact penalties with their linear part (up to a
+                // constant, the same within a round).
+                let energy_at = |x: &[Vec3], membrane: f64| -> f64 {
+                    let mut e = membrane + pd.system.bend_energy(x);
+                    for i in 0..n {
+                        e += 0.5 * inertia[i] * (x[i] - y[i]).norm_squared() - extra[i].dot(&x[i]);
+                    }
+                    e + lr.as_ref().map_or(0.0, |lr| lr.penalty_energy(x))
+                };
                 loop {
                     let tl = Instant::now();
-                    // Only for systems without contact terms and with the exact factor: there the
-                    // global step is one fixed linear map, as the acceleration assumes (with contact
-                    // terms it diverged on the 20k-vertex t-shirt: stretch 543 vs 15 without).
-                    let chebyshev = p.projective_chebyshev > 0.0 && problem.exact;
+                    // Only for direct global steps (the exact factor, no contact terms or a few as
+                    // a low-rank correction): there the global step is one fixed linear map, as the
+                    // acceleration assumes (with CG global steps under many contact terms it
+                    // diverged on the 20k-vertex t-shirt: stretch 543 vs 15 without).
+                    let direct = problem.exact || problem.low_rank.is_some();
+                    let accelerate = p.projective_anderson > 0 && direct;
+                    let chebyshev = !accelerate && p.projective_chebyshev > 0.0 && direct;
                     if chebyshev {
                         cur.clone_from(&x);
                     }
-                    pd.system.project(&x, &mut work.targets);
+                    if accelerate {
+                        // Peng et al.'s safeguard: an extrapolation that raised the energy is
+                        // replaced by the plain iterate, and the history restarts.
+                        let membrane = pd.system.project_energy(&x, &mut work.targets);
+                        let mut e = energy_at(&x, membrane);
+                        if extrapolated && e > accepted {
+                            x.copy_from_slice(anderson.plain());
+                            anderson.reset();
+                            e = energy_at(&x, pd.system.project_energy(&x, &mut work.targets));
+                            result.rejected += 1;
+                        }
+                        accepted = e;
+                        anderson.begin(&x);
+                    } else {
+                        pd.system.project(&x, &mut work.targets);
+                    }
                     let tg = Instant::now();
                     let last = result.iterations + 1 >= p.projective_iterations;
                     let check = !last
@@ -1175,6 +1245,10 @@ impl Simulator {
                         for i in 0..n {
                             x[i] = (x[i] - prev[i]) * omega + prev[i];
                         }
+                    }
+                    if accelerate {
+                        let last = result.iterations + 1 >= p.projective_iterations;
+                        extrapolated = anderson.finish(&mut x, !last);
                     }
                     std::mem::swap(&mut prev, &mut cur);
                     have_prev = chebyshev;
@@ -1406,6 +1480,60 @@ struct Solved {
 
 /// CG iterations of one projective global step above which, once the rest shape changed, the
 /// factor is recomputed for the next step.
+/// The contact terms of a projective global step as rank-one terms ([`low_rank`]): per spring
+/// one group (its four weighted nodes) with the normal penalty, per obstacle contact one group
+/// (its vertex) with the normal constraint and, with friction `k > 0`, two tangential penalties.
+fn low_rank_terms(
+    springs: &[contact::ClothContact],
+    spring_k: &[f64],
+    contacts: &[ObstacleContact],
+    friction: &[f64],
+) -> (Vec<low_rank::Group>, Vec<low_rank::Term>) {
+    let mut groups = Vec::with_capacity(springs.len() + contacts.len());
+    let mut terms = Vec::new();
+    for (s, &k) in springs.iter().zip(spring_k) {
+        terms.push(low_rank::Term {
+            group: groups.len() as u32,
+            dir: s.normal,
+            inv_k: 1.0 / k,
+        });
+        groups.push(low_rank::Group {
+            nodes: s.nodes,
+            weights: s.weights,
+        });
+    }
+    for (c, &k) in contacts.iter().zip(friction) {
+        let group = groups.len() as u32;
+        groups.push(low_rank::Group {
+            nodes: [c.vertex; 4],
+            weights: [1.0, 0.0, 0.0, 0.0],
+        });
+        terms.push(low_rank::Term {
+            group,
+            dir: c.normal,
+            inv_k: 0.0,
+        });
+        if k > 0.0 {
+            // k (I - n n^T) = k (t1 t1^T + t2 t2^T).
+            let axis = if c.normal.x.abs() < 0.9 {
+                Vec3::x()
+            } else {
+                Vec3::y()
+            };
+            let t1 = c.normal.cross(&axis).normalize();
+            let t2 = c.normal.cross(&t1);
+            for dir in [t1, t2] {
+                terms.push(low_rank::Term {
+                    group,
+                    dir,
+                    inv_k: 1.0 / k,
+                });
+            }
+        }
+    }
+    (groups, terms)
+}
+
 const PD_REFACTOR_CG: usize = 3;
 /// Cap of the CG iterations of one projective global step.
 const PD_CG_CAP: usize = 10;
