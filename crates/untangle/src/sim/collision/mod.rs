@@ -330,7 +330,7 @@ pub fn normal_gap(x: &[Vec3; 4], vt: bool) -> f64 {
 /// `x[split..]` (a lower bound of the distance of their convex hulls for any `u`, computed for
 /// the `u` actually given, so rounding in `u` does not matter); `-inf` for `u = 0`.
 #[inline]
-fn separation_along(x: &[Vec3; 4], split: usize, u: &Vec3) -> f64 {
+pub(crate) fn separation_along(x: &[Vec3; 4], split: usize, u: &Vec3) -> f64 {
     let l = u.norm();
     if l == 0.0 || !l.is_finite() {
         return f64::NEG_INFINITY;
@@ -556,6 +556,7 @@ pub fn handle(
         let (applied, resting) = proximity::repel_screened(
             scene,
             v,
+            &v_start,
             screened.near,
             policy,
             settings.contacts_within_reach,
