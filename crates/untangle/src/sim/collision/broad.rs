@@ -12,6 +12,13 @@ use crate::geom::{Aabb, Vec3};
 /// Steps between full rebuilds of the hierarchies (refit in between).
 pub const REBUILD_EVERY: u64 = 16;
 
+/// Most primitives per leaf of the hierarchies (the candidate order does not depend on it).
+pub const LEAF_SIZE: usize = 8;
+
+fn build(boxes: &[Aabb]) -> Bvh {
+    Bvh::build_with_leaf_size(boxes, LEAF_SIZE)
+}
+
 /// The hierarchies, kept across steps.
 #[derive(Clone, Debug, Default)]
 pub struct BroadPhase {
@@ -94,12 +101,12 @@ impl BroadPhase {
             )
         };
         if fresh {
-            self.tri = Bvh::build(&tri);
-            self.edge = Bvh::build(&edge);
-            self.vert = Bvh::build(&vert);
-            self.obs_tri = Bvh::build(&obs_tri);
-            self.obs_edge = Bvh::build(&obs_edge);
-            self.obs_vert = Bvh::build(&obs_vert);
+            self.tri = build(&tri);
+            self.edge = build(&edge);
+            self.vert = build(&vert);
+            self.obs_tri = build(&obs_tri);
+            self.obs_edge = build(&obs_edge);
+            self.obs_vert = build(&obs_vert);
             self.built = true;
             self.obstacle_count = obs.triangles.len();
         } else {
@@ -123,6 +130,10 @@ impl BroadPhase {
         let count = changed.iter().filter(|&&c| c).count();
         if !self.built || self.vert_boxes.len() != scene.x0.len() || 4 * count > changed.len() {
             self.update(scene, v, margin, false);
+            return;
+        }
+        if count == 0 {
+            // The boxes of the last update are those of `v` already.
             return;
         }
         let touched = |nodes: &[u32]| nodes.iter().any(|&k| changed[k as usize]);

@@ -330,7 +330,7 @@ pub fn normal_gap(x: &[Vec3; 4], vt: bool) -> f64 {
 /// `x[split..]` (a lower bound of the distance of their convex hulls for any `u`, computed for
 /// the `u` actually given, so rounding in `u` does not matter); `-inf` for `u = 0`.
 #[inline]
-pub(crate) fn separation_along(x: &[Vec3; 4], split: usize, u: &Vec3) -> f64 {
+fn separation_along(x: &[Vec3; 4], split: usize, u: &Vec3) -> f64 {
     let l = u.norm();
     if l == 0.0 || !l.is_finite() {
         return f64::NEG_INFINITY;

@@ -98,8 +98,9 @@ fn dormant_distance(eps: f64, rel: f64, h: f64) -> f64 {
 /// separating axes along the component of the centre vector (midpoint to midpoint) orthogonal to
 /// the first edge and to the second one: for parallel edges side by side each is the distance of
 /// their lines, where [`super::centre_gap`] loses the edges' projections onto the centre vector.
-/// Each axis is used as computed ([`super::separation_along`]), so rounding in the axis does not
-/// matter; `-inf` when an edge is degenerate.
+/// Each axis is used as computed (the projections of all four nodes onto it, as in
+/// [`super::axis_gap`]), so rounding in the axis does not matter; `-inf` when an edge is
+/// degenerate.
 #[inline]
 pub fn in_plane_gap(x: &[Vec3; 4]) -> f64 {
     let c = (x[2] + x[3] - x[0] - x[1]) * 0.5;
@@ -108,9 +109,30 @@ pub fn in_plane_gap(x: &[Vec3; 4]) -> f64 {
     if !(le > 0.0 && lf > 0.0) {
         return f64::NEG_INFINITY;
     }
-    let ue = c - e * (c.dot(&e) / le);
-    let uf = c - f * (c.dot(&f) / lf);
-    super::separation_along(x, 2, &ue).max(super::separation_along(x, 2, &uf))
+    let (d1, d2, d3) = (e, x[2] - x[0], x[3] - x[0]);
+    // The gap between the projections of the two edges onto `u` (relative to `x[0]`).
+    let along = |u: Vec3| -> f64 {
+        let l2 = u.norm_squared();
+        if l2.is_nan() || l2 <= 0.0 {
+            return f64::NEG_INFINITY;
+        }
+        let (a1, b2, b3) = (d1.dot(&u), d2.dot(&u), d3.dot(&u));
+        let (a_lo, a_hi) = if a1 < 0.0 { (a1, 0.0) } else { (0.0, a1) };
+        let (b_lo, b_hi) = if b2 < b3 { (b2, b3) } else { (b3, b2) };
+        let g = if b_lo - a_hi > a_lo - b_hi {
+            b_lo - a_hi
+        } else {
+            a_lo - b_hi
+        };
+        g / l2.sqrt()
+    };
+    let ge = along(c - e * (c.dot(&e) / le));
+    let gf = along(c - f * (c.dot(&f) / lf));
+    if ge > gf {
+        ge
+    } else {
+        gf
+    }
 }
 
 /// What screening learnt about a pair's start state, for the first CCD pass: its
