@@ -10,7 +10,8 @@
 
 use crate::geom::Aabb;
 
-const LEAF_SIZE: usize = 4;
+/// Most primitives per leaf of [`Bvh::build`].
+pub const LEAF_SIZE: usize = 4;
 /// Smallest subtree offered to the culling predicate (smaller ones are cheaper to traverse).
 pub const CULL_MIN: u32 = 32;
 /// Subtrees with fewer primitives than this are traversed sequentially.
@@ -53,6 +54,13 @@ pub struct Bvh {
 impl Bvh {
     /// Builds the hierarchy over `aabbs` (primitive `i` has box `aabbs[i]`).
     pub fn build(aabbs: &[Aabb]) -> Bvh {
+        Bvh::build_with_leaf_size(aabbs, LEAF_SIZE)
+    }
+
+    /// [`Bvh::build`] with at most `leaf_size` (>= 1) primitives per leaf: the same pairs from
+    /// every traversal, in a different order (larger leaves: fewer node visits, more box tests).
+    pub fn build_with_leaf_size(aabbs: &[Aabb], leaf_size: usize) -> Bvh {
+        let leaf_size = leaf_size.max(1);
         let n = aabbs.len();
         if n == 0 {
             return Bvh::default();
@@ -85,7 +93,7 @@ impl Bvh {
         let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).collect();
         let slot_aabbs: Vec<Aabb> = order.iter().map(|&i| aabbs[i as usize]).collect();
-        let nodes = build_subtree(&codes, &slot_aabbs, 0, 0);
+        let nodes = build_subtree(&codes, &slot_aabbs, 0, 0, leaf_size);
         Bvh {
             nodes,
             order,
@@ -473,14 +481,28 @@ fn split_point(codes: &[u64]) -> usize {
 /// to the returned vector (the root is element 0). The top `PAR_DEPTH` levels build their two
 /// halves in parallel and concatenate them, shifting child indices; the result does not depend on
 /// the thread count.
-fn build_subtree(codes: &[u64], boxes: &[Aabb], offset: u32, depth: u32) -> Vec<Node> {
+fn build_subtree(
+    codes: &[u64],
+    boxes: &[Aabb],
+    offset: u32,
+    depth: u32,
+    leaf_size: usize,
+) -> Vec<Node> {
     const PAR_DEPTH: u32 = 3;
     if depth < PAR_DEPTH && codes.len() as u32 >= 4 * PAR_CUTOFF {
         let size = codes.len() as u32;
         let m = split_point(codes);
         let (mut left, right) = rayon::join(
-            || build_subtree(&codes[..m], &boxes[..m], offset, depth + 1),
-            || build_subtree(&codes[m..], &boxes[m..], offset + m as u32, depth + 1),
+            || build_subtree(&codes[..m], &boxes[..m], offset, depth + 1, leaf_size),
+            || {
+                build_subtree(
+                    &codes[m..],
+                    &boxes[m..],
+                    offset + m as u32,
+                    depth + 1,
+                    leaf_size,
+                )
+            },
         );
         let shift = |nodes: &mut [Node], by: u32| {
             for n in nodes.iter_mut() {
@@ -510,16 +532,22 @@ fn build_subtree(codes: &[u64], boxes: &[Aabb], offset: u32, depth: u32) -> Vec<
         debug_assert_eq!(nodes.len() as u32, 1 + nl + nr);
         return nodes;
     }
-    let mut nodes = Vec::with_capacity(2 * codes.len() / LEAF_SIZE + 1);
-    build_sequential(&mut nodes, codes, boxes, offset);
+    let mut nodes = Vec::with_capacity(2 * codes.len() / leaf_size + 1);
+    build_sequential(&mut nodes, codes, boxes, offset, leaf_size);
     nodes
 }
 
 /// Pre-order build appending to `nodes`; returns the index of the subtree root.
-fn build_sequential(nodes: &mut Vec<Node>, codes: &[u64], boxes: &[Aabb], offset: u32) -> usize {
+fn build_sequential(
+    nodes: &mut Vec<Node>,
+    codes: &[u64],
+    boxes: &[Aabb],
+    offset: u32,
+    leaf_size: usize,
+) -> usize {
     let idx = nodes.len();
     let size = codes.len() as u32;
-    if codes.len() <= LEAF_SIZE {
+    if codes.len() <= leaf_size {
         let aabb = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
         nodes.push(Node {
             aabb,
@@ -542,8 +570,14 @@ fn build_sequential(nodes: &mut Vec<Node>, codes: &[u64], boxes: &[Aabb], offset
         first: offset,
     });
     let m = split_point(codes);
-    let l = build_sequential(nodes, &codes[..m], &boxes[..m], offset);
-    let r = build_sequential(nodes, &codes[m..], &boxes[m..], offset + m as u32);
+    let l = build_sequential(nodes, &codes[..m], &boxes[..m], offset, leaf_size);
+    let r = build_sequential(
+        nodes,
+        &codes[m..],
+        &boxes[m..],
+        offset + m as u32,
+        leaf_size,
+    );
     nodes[idx].aabb = nodes[l].aabb.union(&nodes[r].aabb);
     nodes[idx].half_area = nodes[idx].aabb.half_area();
     nodes[idx].start = l as u32;
@@ -561,12 +595,13 @@ mod tests {
 
     proptest! {
         /// Self and cross traversal report exactly the overlapping pairs of a brute-force scan,
-        /// also after a refit to moved boxes.
+        /// also after a refit to moved boxes, for any leaf size.
         #[test]
         fn matches_brute_force(
             raw in proptest::collection::vec((proptest::array::uniform3(-10.0f64..10.0), proptest::array::uniform3(0.0f64..1.5)), 0..300),
             raw2 in proptest::collection::vec((proptest::array::uniform3(-10.0f64..10.0), proptest::array::uniform3(0.0f64..1.5)), 0..100),
             shift in proptest::array::uniform3(-3.0f64..3.0),
+            leaf in 1usize..20,
         ) {
             let a = boxes(&raw);
             let b = boxes(&raw2);
@@ -575,11 +610,13 @@ mod tests {
                 for i in 0..a.len() { for j in i + 1..a.len() { if a[i].overlaps(&a[j]) { v.push((i as u32, j as u32)); } } }
                 v
             };
-            let mut bvh = Bvh::build(&a);
+            // Any leaf size gives the same pairs (the default one most of the time).
+            let leaf = if leaf < 10 { LEAF_SIZE } else { leaf - 9 };
+            let mut bvh = Bvh::build_with_leaf_size(&a, leaf);
             let mut got: Vec<(u32, u32)> = bvh.self_pairs(|i, j, o| o.push((i.min(j), i.max(j))));
             got.sort();
             prop_assert_eq!(&got, &brute_self(&a));
-            let bvh2 = Bvh::build(&b);
+            let bvh2 = Bvh::build_with_leaf_size(&b, leaf);
             let mut cross: Vec<(u32, u32)> = bvh.cross_pairs(&bvh2, |i, j, o| o.push((i, j)));
             cross.sort();
             let mut want = Vec::new();

@@ -556,6 +556,7 @@ pub fn handle(
         let (applied, resting) = proximity::repel_screened(
             scene,
             v,
+            &v_start,
             screened.near,
             policy,
             settings.contacts_within_reach,

@@ -11,8 +11,6 @@
 //! ([`dormant`]) have their closest points computed only if an impulse changes one of those
 //! velocities: the same impulses, in the same order, as computing every pair at once.
 
-use rayon::prelude::*;
-
 use super::{closest, impulse, Closest, Pair, PairKind, Scene};
 use crate::geom::Vec3;
 use crate::sim::policy::ContactPolicy;
@@ -96,6 +94,47 @@ fn dormant_distance(eps: f64, rel: f64, h: f64) -> f64 {
     (2.0 * eps).max(eps + rel * h * (1.0 + 1e-9))
 }
 
+/// A lower bound of the distance of two edges (nodes `x`: `[ea0, ea1, eb0, eb1]`) from the
+/// separating axes along the component of the centre vector (midpoint to midpoint) orthogonal to
+/// the first edge and to the second one: for parallel edges side by side each is the distance of
+/// their lines, where [`super::centre_gap`] loses the edges' projections onto the centre vector.
+/// Each axis is used as computed (the projections of all four nodes onto it, as in
+/// [`super::axis_gap`]), so rounding in the axis does not matter; `-inf` when an edge is
+/// degenerate.
+#[inline]
+pub fn in_plane_gap(x: &[Vec3; 4]) -> f64 {
+    let c = (x[2] + x[3] - x[0] - x[1]) * 0.5;
+    let (e, f) = (x[1] - x[0], x[3] - x[2]);
+    let (le, lf) = (e.norm_squared(), f.norm_squared());
+    if !(le > 0.0 && lf > 0.0) {
+        return f64::NEG_INFINITY;
+    }
+    let (d1, d2, d3) = (e, x[2] - x[0], x[3] - x[0]);
+    // The gap between the projections of the two edges onto `u` (relative to `x[0]`).
+    let along = |u: Vec3| -> f64 {
+        let l2 = u.norm_squared();
+        if l2.is_nan() || l2 <= 0.0 {
+            return f64::NEG_INFINITY;
+        }
+        let (a1, b2, b3) = (d1.dot(&u), d2.dot(&u), d3.dot(&u));
+        let (a_lo, a_hi) = if a1 < 0.0 { (a1, 0.0) } else { (0.0, a1) };
+        let (b_lo, b_hi) = if b2 < b3 { (b2, b3) } else { (b3, b2) };
+        let g = if b_lo - a_hi > a_lo - b_hi {
+            b_lo - a_hi
+        } else {
+            a_lo - b_hi
+        };
+        g / l2.sqrt()
+    };
+    let ge = along(c - e * (c.dot(&e) / le));
+    let gf = along(c - f * (c.dot(&f) / lf));
+    if ge > gf {
+        ge
+    } else {
+        gf
+    }
+}
+
 /// What screening learnt about a pair's start state, for the first CCD pass: its
 /// [`super::axis_gap`] (or another lower distance bound) and [`super::coordinate_scale`] at the
 /// start, and its start distance if the closest points were computed.
@@ -160,6 +199,20 @@ pub fn screen_pair(
     }
     if super::gap_exceeds(gap, scale, far) {
         return (Verdict::Far, start, ccd_settled);
+    }
+    // Two edges side by side on one sheet (opposite sides of a quad, the bulk of the edge pairs
+    // that get this far) are separated along the centre vector's component orthogonal to either
+    // edge much better than along the centre vector itself when the quad is skewed. These axes
+    // only decide dormant or far (what the closest points would also decide); the start gap
+    // handed to the CCD stays the one above, so its results do not change.
+    if !vt {
+        let extra = in_plane_gap(x);
+        if super::gap_exceeds(extra, scale, dormant_at) {
+            return (Verdict::Dormant, start, ccd_settled);
+        }
+        if super::gap_exceeds(extra, scale, far) {
+            return (Verdict::Far, start, ccd_settled);
+        }
     }
     let geom = closest(x, vt);
     start.distance = Some(geom.distance);
@@ -273,58 +326,34 @@ impl NearList {
     }
 }
 
-/// Applies proximity impulses to `v`; returns the number of impulses applied and the cloth-cloth
-/// pairs that started within twice their thickness or received an impulse, and with
-/// `within_reach` also those that could come within it during the step (contacts the next step
-/// treats inside the implicit solve, see [`crate::sim::contact`]).
-pub fn repel(
-    scene: &Scene,
-    v: &mut [Vec3],
-    candidates: &[Pair],
-    policy: &dyn ContactPolicy,
-    within_reach: bool,
-) -> (usize, Vec<Pair>) {
-    let list: Vec<(Pair, Verdict)> = {
-        let v: &[Vec3] = v;
-        candidates
-            .par_iter()
-            .with_min_len(512)
-            .filter_map(|&p| {
-                let eps = scene.thickness(p, policy)?;
-                let nodes = scene.nodes(p);
-                let x = scene.positions(v, &nodes, 0.0);
-                Some((
-                    p,
-                    screen_pair(scene, v, p, eps, &nodes, &x, !within_reach, 0.0).0,
-                ))
-            })
-            .collect()
-    };
-    let mut near = NearList::default();
-    for (p, verdict) in list {
-        near.push(p, verdict);
-    }
-    repel_screened(scene, v, near, policy, within_reach)
-}
-
-/// [`repel`] on candidates already screened ([`screen_pair`] at the current `v`, in candidate
-/// order): the Gauss-Seidel sweeps, dormant pairs evaluated (with the start velocities, as
-/// [`screen_pair`] would have) once an impulse changed a velocity of one of their nodes. The
-/// impulses, their order and the resting contacts are those of screening every pair eagerly.
+/// Applies proximity impulses to `v` (equal to `v_start` on entry) on candidates already
+/// screened ([`screen_pair`] at `v_start`, in candidate order, see [`super::screen`]): the
+/// Gauss-Seidel sweeps, dormant pairs evaluated (with the start velocities, as [`screen_pair`]
+/// would have) once an impulse changed a velocity of one of their nodes. The impulses, their
+/// order and the resting contacts are those of screening every pair eagerly. Returns the number
+/// of impulses applied and the cloth-cloth pairs that started within twice their thickness or
+/// received an impulse, and with `within_reach` also those that could come within it during the
+/// step (contacts the next step treats inside the implicit solve, see [`crate::sim::contact`]).
 pub fn repel_screened(
     scene: &Scene,
     v: &mut [Vec3],
+    v_start: &[Vec3],
     near: NearList,
     policy: &dyn ContactPolicy,
     within_reach: bool,
 ) -> (usize, Vec<Pair>) {
-    let (applied, impulsed, near) = sweeps(scene, v, near, policy);
-    // Resting contact for the next step: pairs that start close, and pairs whose approach an
-    // impulse just stopped (they end the step near their thickness). Pairs that were merely
-    // within reach of fast motion are not: linearised at the next step's start, far pairs of
-    // fast cloth would all look like contacts. (Dormant pairs are neither close nor impulsed.)
-    let resting = near
-        .slots
+    let (applied, impulsed, near) = sweeps(scene, v, v_start, near, policy);
+    (applied, resting_of(&near, &impulsed, within_reach))
+}
+
+/// The resting contacts for the next step after the sweeps (`impulsed`: per [`Near`] whether it
+/// received an impulse): pairs that start close, and pairs whose approach an impulse just stopped
+/// (they end the step near their thickness), cloth-cloth only, in candidate order. Pairs that
+/// were merely within reach of fast motion are not, unless `within_reach`: linearised at the
+/// next step's start, far pairs of fast cloth would all look like contacts. (Dormant pairs are
+/// neither close nor impulsed.)
+fn resting_of(near: &NearList, impulsed: &[bool], within_reach: bool) -> Vec<Pair> {
+    near.slots
         .iter()
         .filter(|(_, i)| *i != DORMANT && *i != FAR)
         .map(|(_, i)| (&near.nears[*i as usize], impulsed[*i as usize]))
@@ -333,19 +362,20 @@ pub fn repel_screened(
                 && (*hit || n.close || within_reach)
         })
         .map(|(n, _)| n.pair)
-        .collect();
-    (applied, resting)
+        .collect()
 }
 
-/// The Gauss-Seidel sweeps of [`repel_screened`]: impulses applied, per [`Near`] whether it
-/// received one, and the list with the dormant pairs it had to evaluate.
+/// The Gauss-Seidel sweeps of [`repel_screened`] (`v` equal to `v_start` on entry): impulses
+/// applied, per [`Near`] whether it received one, and the list with the dormant pairs it had to
+/// evaluate.
 fn sweeps(
     scene: &Scene,
     v: &mut [Vec3],
+    v_start: &[Vec3],
     mut near: NearList,
     policy: &dyn ContactPolicy,
 ) -> (usize, Vec<bool>, NearList) {
-    let v_start: Vec<Vec3> = v.to_vec();
+    debug_assert!(v == v_start);
     let mut moved = vec![false; v.len()];
     let mut impulsed = vec![false; near.nears.len()];
     let mut applied = 0;
@@ -354,6 +384,10 @@ fn sweeps(
         for s in 0..near.slots.len() {
             let (pair, mut index) = near.slots[s];
             if index == DORMANT {
+                if applied == 0 {
+                    // No velocity has changed yet.
+                    continue;
+                }
                 let nodes = scene.nodes(pair);
                 if !nodes
                     .iter()
@@ -365,8 +399,8 @@ fn sweeps(
                 let eps = scene
                     .thickness(pair, policy)
                     .expect("dormant pairs have a thickness");
-                let x = scene.positions(&v_start, &nodes, 0.0);
-                index = match screen_pair(scene, &v_start, pair, eps, &nodes, &x, false, 0.0).0 {
+                let x = scene.positions(v_start, &nodes, 0.0);
+                index = match screen_pair(scene, v_start, pair, eps, &nodes, &x, false, 0.0).0 {
                     Verdict::Near(n) => {
                         near.nears.push(n);
                         impulsed.push(false);
@@ -458,6 +492,34 @@ mod tests {
         }
     }
 
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        /// Oracle for [`in_plane_gap`]: never above the edges' distance (closest points), on
+        /// random edges and on nearly parallel edges side by side (where it is tight).
+        #[test]
+        fn in_plane_gap_never_exceeds_the_distance(
+            x in prop::array::uniform4(prop::array::uniform3(-0.05f64..0.05)),
+            side in any::<bool>(),
+            skew in -1e-3f64..1e-3,
+        ) {
+            let mut x = x.map(v3);
+            if side {
+                // Opposite sides of a (skewed, bent) quad, 1 cm apart.
+                let e = x[1] - x[0];
+                let o = e.cross(&Vec3::z()).try_normalize(1e-9).unwrap_or(Vec3::x()) * 0.01;
+                x[2] = x[0] + o + e * (skew / 0.01) + Vec3::z() * (0.3 * skew);
+                x[3] = x[1] + o - e * (skew / 0.01) + Vec3::z() * skew;
+            }
+            let d = closest(&x, false).distance;
+            let g = in_plane_gap(&x);
+            let scale = crate::sim::collision::coordinate_scale(&x);
+            prop_assert!(g <= d * (1.0 + 1e-12) + 1e-12 * scale, "gap {g} distance {d}");
+            if side && (x[1] - x[0]).norm() > 0.02 {
+                prop_assert!(g > 0.5 * d, "not tight: gap {g} distance {d}");
+            }
+        }
+    }
+
     /// [`dormant`] is not vacuous: nearby pairs moving together are dormant, the same pairs
     /// approaching each other fast are not.
     #[test]
@@ -481,7 +543,7 @@ mod tests {
     /// contacts are identical, bit for bit.
     #[test]
     fn lazy_screening_repels_exactly_like_eager_screening() {
-        let mut woke = 0;
+        let (mut woke, mut in_plane) = (0, 0);
         for seed in 0..8u64 {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             // Two wavy sheets 7 mm apart (thickness 3 mm: the layers' pairs are beyond twice
@@ -530,61 +592,79 @@ mod tests {
                 let mut eager = NearList::default();
                 for &p in &cands {
                     if let Some(eps) = scene.thickness(p, &policy) {
-                        let nodes = scene.nodes(p);
-                        let x = scene.positions(&v0, &nodes, 0.0);
-                        eager.push(
-                            p,
-                            screen_pair(&scene, &v0, p, eps, &nodes, &x, false, 0.0).0,
-                        );
+                        eager.push(p, oracle_verdict(&scene, &v0, p, eps));
                     }
                 }
                 let mut va = v0.clone();
-                let (ia, ra) = repel_screened(&scene, &mut va, eager, &policy, within_reach);
-                let mut vb = v0.clone();
-                let lazy_list = {
-                    let mut l = NearList::default();
-                    for &p in &cands {
-                        let eps = scene.thickness(p, &policy).unwrap();
-                        let nodes = scene.nodes(p);
-                        let x = scene.positions(&v0, &nodes, 0.0);
-                        l.push(
-                            p,
-                            screen_pair(&scene, &v0, p, eps, &nodes, &x, !within_reach, 0.0).0,
-                        );
-                    }
-                    l
-                };
+                let (ia, ra) = repel_screened(&scene, &mut va, &v0, eager, &policy, within_reach);
+                // The real path: the shared screening pass, then the sweeps.
+                let lazy_list =
+                    super::super::screen::screen(&scene, &v0, &cands, &policy, Some(within_reach))
+                        .near;
                 let dormant_before = lazy_list.dormant();
                 if !within_reach {
                     assert!(dormant_before > 0, "seed {seed}: no dormant pair");
+                    // Edge pairs made dormant by the in-plane axes alone (the axis gap would
+                    // have needed their closest points).
+                    for &(p, i) in &lazy_list.slots {
+                        if i == DORMANT && !p.is_vertex_triangle() {
+                            let nodes = scene.nodes(p);
+                            let x = scene.positions(&v0, &nodes, 0.0);
+                            let vel = nodes.map(|k| scene.velocity(&v0, k));
+                            in_plane += !dormant(&x, &vel, false, policy.0, scene.h) as usize;
+                        }
+                    }
                 }
-                let (ib, rb) = repel(&scene, &mut vb, &cands, &policy, within_reach);
+                let mut vb = v0.clone();
+                let mut lazy = lazy_list;
+                let before = lazy.evaluated();
+                let (ib, impulsed, after) = sweeps(&scene, &mut vb, &v0, lazy, &policy);
+                lazy = after;
+                woke += lazy.evaluated() - before;
+                let rb = resting_of(&lazy, &impulsed, within_reach);
                 assert!(ia > 0, "seed {seed}: no impulse");
                 assert_eq!(ia, ib, "seed {seed}");
                 assert_eq!(ra, rb, "seed {seed}");
                 assert!(va == vb, "seed {seed}: velocities differ");
-                // How many dormant pairs the sweeps had to evaluate (the on-demand path runs).
-                let mut vc = v0.clone();
-                let mut lazy = lazy_list;
-                let before = lazy.evaluated();
-                let _ = repel_screened_inspect(&scene, &mut vc, &mut lazy, &policy);
-                woke += lazy.evaluated() - before;
             }
         }
         assert!(woke > 0, "no dormant pair was ever woken");
+        assert!(
+            in_plane > 0,
+            "no edge pair was made dormant by the in-plane axes"
+        );
     }
 
-    /// Runs the sweeps on a list kept by the caller (to count the pairs woken on demand).
-    fn repel_screened_inspect(
-        scene: &Scene,
-        v: &mut [Vec3],
-        near: &mut NearList,
-        policy: &dyn ContactPolicy,
-    ) -> usize {
-        let list = std::mem::take(near);
-        let count = list.slots.len();
-        let (_, _, after) = sweeps(scene, v, list, policy);
-        *near = after;
-        count
+    /// The definition of proximity's verdict, with every pair's closest points (no bound, no
+    /// shortcut): close (within twice the thickness) or active (could come within it by the
+    /// end of the step, to first order with the nodes' speeds), else far.
+    fn oracle_verdict(scene: &Scene, v: &[Vec3], p: Pair, eps: f64) -> Verdict {
+        let vt = p.is_vertex_triangle();
+        let nodes = scene.nodes(p);
+        let x = scene.positions(v, &nodes, 0.0);
+        let geom = closest(&x, vt);
+        let reach: f64 = (0..4)
+            .map(|k| geom.weights[k].abs() * scene.velocity(v, nodes[k]).norm())
+            .sum::<f64>()
+            * scene.h;
+        let gap = geom.distance - eps;
+        let (close, active) = (geom.distance < 2.0 * eps, gap <= 2.0 * reach);
+        if !close && !active {
+            return Verdict::Far;
+        }
+        let target = if gap >= 0.0 {
+            -gap / scene.h
+        } else {
+            -PUSH_OUT * gap / scene.h
+        };
+        Verdict::Near(Near {
+            pair: p,
+            nodes,
+            geom,
+            target,
+            mu: scene.friction_of(p),
+            active,
+            close,
+        })
     }
 }

@@ -32,7 +32,7 @@ pub struct Screened {
 }
 
 /// Screens `candidates` (without duplicates) at velocities `v`. `proximity`: `None` when
-/// proximity repulsion is off, else `Some(within_reach)` (see [`proximity::repel`]); without
+/// proximity repulsion is off, else `Some(within_reach)` (see [`proximity::repel_screened`]); without
 /// `within_reach`, inert pairs stay dormant ([`proximity::Verdict::Dormant`]).
 pub fn screen(
     scene: &Scene,
