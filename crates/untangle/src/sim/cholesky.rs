@@ -263,25 +263,7 @@ impl ScalarCholesky {
                 }
             });
         let llt = LltRef::<'_, usize, f32>::new(&self.symbolic, &self.factor32);
-        let (bx, byz) = buf.split_at_mut(n);
-        rayon::join(
-            || {
-                llt.solve_in_place_with_conj(
-                    Conj::No,
-                    MatMut::from_column_major_slice_mut(bx, n, 1),
-                    Par::Seq,
-                    MemStack::new(stack_x),
-                )
-            },
-            || {
-                llt.solve_in_place_with_conj(
-                    Conj::No,
-                    MatMut::from_column_major_slice_mut(byz, n, 2),
-                    Par::Seq,
-                    MemStack::new(stack),
-                )
-            },
-        );
+        solve_x_and_yz(llt, stack_x, stack, buf, n);
         for (i, v) in out.iter_mut().enumerate() {
             *v = Vec3::new(buf[i] as f64, buf[n + i] as f64, buf[2 * n + i] as f64);
         }
@@ -310,25 +292,7 @@ impl ScalarCholesky {
     ) {
         let n = self.n;
         let llt = LltRef::<'_, usize, f64>::new(&self.symbolic, &self.factor);
-        let (bx, byz) = buf.split_at_mut(n);
-        rayon::join(
-            || {
-                llt.solve_in_place_with_conj(
-                    Conj::No,
-                    MatMut::from_column_major_slice_mut(bx, n, 1),
-                    Par::Seq,
-                    MemStack::new(stack_x),
-                )
-            },
-            || {
-                llt.solve_in_place_with_conj(
-                    Conj::No,
-                    MatMut::from_column_major_slice_mut(byz, n, 2),
-                    Par::Seq,
-                    MemStack::new(stack),
-                )
-            },
-        );
+        solve_x_and_yz(llt, stack_x, stack, buf, n);
         for (i, v) in out.iter_mut().enumerate() {
             *v = Vec3::new(buf[i], buf[n + i], buf[2 * n + i]);
         }
@@ -381,6 +345,37 @@ impl ScalarCholesky {
 
 /// Rows per parallel task when the right-hand side is evaluated.
 const RHS_CHUNK: usize = 1024;
+
+/// faer's solve of the `n x 3` column-major `buf` in place: the `x` column and the `y, z` pair
+/// as two solves side by side (`rayon::join`; always split the same way, so the arithmetic does
+/// not depend on the number of threads).
+fn solve_x_and_yz<T: faer::traits::ComplexField>(
+    llt: LltRef<'_, usize, T>,
+    stack_x: &mut MemBuffer,
+    stack: &mut MemBuffer,
+    buf: &mut [T],
+    n: usize,
+) {
+    let (bx, byz) = buf.split_at_mut(n);
+    rayon::join(
+        || {
+            llt.solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(bx, n, 1),
+                Par::Seq,
+                MemStack::new(stack_x),
+            )
+        },
+        || {
+            llt.solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(byz, n, 2),
+                Par::Seq,
+                MemStack::new(stack),
+            )
+        },
+    );
+}
 
 #[cfg(test)]
 mod tests {
