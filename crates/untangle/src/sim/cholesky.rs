@@ -216,18 +216,7 @@ impl ScalarCholesky {
         };
         let n = self.n;
         let (stack_x, stack, buf) = &mut *guard;
-        let (bx, rest) = buf.split_at_mut(n);
-        let (by, bz) = rest.split_at_mut(n);
-        bx.par_chunks_mut(RHS_CHUNK)
-            .zip(by.par_chunks_mut(RHS_CHUNK))
-            .zip(bz.par_chunks_mut(RHS_CHUNK))
-            .enumerate()
-            .for_each(|(c, ((xs, ys), zs))| {
-                for k in 0..xs.len() {
-                    let v = rhs(c * RHS_CHUNK + k);
-                    (xs[k], ys[k], zs[k]) = (v.x, v.y, v.z);
-                }
-            });
+        fill_columns(buf, n, |v| v, rhs);
         self.solve_columns(stack_x, stack, buf, out);
     }
 
@@ -250,18 +239,7 @@ impl ScalarCholesky {
             .unwrap_or_else(|e| e.into_inner());
         let (stack_x, stack, buf) = &mut *guard;
         buf.resize(3 * n, 0.0);
-        let (bx, rest) = buf.split_at_mut(n);
-        let (by, bz) = rest.split_at_mut(n);
-        bx.par_chunks_mut(RHS_CHUNK)
-            .zip(by.par_chunks_mut(RHS_CHUNK))
-            .zip(bz.par_chunks_mut(RHS_CHUNK))
-            .enumerate()
-            .for_each(|(c, ((xs, ys), zs))| {
-                for k in 0..xs.len() {
-                    let v = rhs(c * RHS_CHUNK + k);
-                    (xs[k], ys[k], zs[k]) = (v.x as f32, v.y as f32, v.z as f32);
-                }
-            });
+        fill_columns(buf, n, |v| v as f32, rhs);
         let llt = LltRef::<'_, usize, f32>::new(&self.symbolic, &self.factor32);
         solve_x_and_yz(llt, stack_x, stack, buf, n);
         for (i, v) in out.iter_mut().enumerate() {
@@ -345,6 +323,30 @@ impl ScalarCholesky {
 
 /// Rows per parallel task when the right-hand side is evaluated.
 const RHS_CHUNK: usize = 1024;
+
+/// Writes row `i` of the `n x 3` column-major `buf` from `rhs(i)`, in parallel chunks,
+/// converting each coordinate with `convert`.
+fn fill_columns<T: Send>(
+    buf: &mut [T],
+    n: usize,
+    convert: impl Fn(f64) -> T + Sync,
+    rhs: impl Fn(usize) -> Vec3 + Sync,
+) {
+    let (bx, rest) = buf.split_at_mut(n);
+    let (by, bz) = rest.split_at_mut(n);
+    bx.par_chunks_mut(RHS_CHUNK)
+        .zip(by.par_chunks_mut(RHS_CHUNK))
+        .zip(bz.par_chunks_mut(RHS_CHUNK))
+        .enumerate()
+        .for_each(|(c, ((xs, ys), zs))| {
+            for k in 0..xs.len() {
+                let v = rhs(c * RHS_CHUNK + k);
+                xs[k] = convert(v.x);
+                ys[k] = convert(v.y);
+                zs[k] = convert(v.z);
+            }
+        });
+}
 
 /// faer's solve of the `n x 3` column-major `buf` in place: the `x` column and the `y, z` pair
 /// as two solves side by side (`rayon::join`; always split the same way, so the arithmetic does

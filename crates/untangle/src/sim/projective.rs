@@ -268,17 +268,7 @@ impl Projective {
 
     /// `y = L x` (the scalar matrix applied to each coordinate).
     pub fn mul_stiffness(&self, x: &[Vec3], y: &mut [Vec3]) {
-        let p = &self.pattern;
-        y.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
-            for (k, yi) in ys.iter_mut().enumerate() {
-                let i = c * CHUNK + k;
-                let mut acc = Vec3::zeros();
-                for s in p.offsets[i] as usize..p.offsets[i + 1] as usize {
-                    acc += x[p.cols[s] as usize] * self.stiff[s];
-                }
-                *yi = acc;
-            }
-        });
+        self.mul_values(&self.stiff, x, y);
     }
 
     /// `y = V x` for the scalar matrix with `values` per pattern slot (each coordinate).
