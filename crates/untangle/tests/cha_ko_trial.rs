@@ -215,16 +215,21 @@ fn run_loop(g: &Garment, p: ResolveParams) -> Run {
 
 #[test]
 fn the_trial_loop_retries_exactly_where_the_plain_loop_increased_the_count() {
-    // Exploded handkerchief 10 x 10, seed 2. Oracle: the plain loop (trial off) up to its
-    // first increase of the red-vertex count; the trial loop must be identical before it
-    // (no retry where nothing turns red), retry at that step, and afterwards never increase
-    // the count except in steps it reports as accepted with an increase.
-    let g = Garment::new(untangle::scenes::exploded::exploded(2, 10).meshes[0].clone()).unwrap();
-    let (_, plain) = run_loop(&g, loop_params(60, 0));
-    let first = plain
-        .windows(2)
-        .position(|w| w[1].0 > w[0].0)
-        .expect("the plain loop increases the count in this scene");
+    // Exploded handkerchief 10 x 10, the first seed whose plain loop increases the count
+    // (which seed depends on the simulator's decisions, e.g. the collision candidate order).
+    // Oracle: the plain loop (trial off) up to its first increase of the red-vertex count;
+    // the trial loop must be identical before it (no retry where nothing turns red), retry at
+    // that step, and afterwards never increase the count except in steps it reports as
+    // accepted with an increase.
+    let (g, plain, first) = (1..=16)
+        .find_map(|seed| {
+            let g = Garment::new(untangle::scenes::exploded::exploded(seed, 10).meshes[0].clone())
+                .unwrap();
+            let (_, plain) = run_loop(&g, loop_params(60, 0));
+            let first = plain.windows(2).position(|w| w[1].0 > w[0].0)?;
+            Some((g, plain, first))
+        })
+        .expect("the plain loop increases the count for one of the seeds");
     let (_, trial) = run_loop(&g, loop_params(60, 3));
     for i in 0..first {
         assert_eq!(trial[i].2, 0, "step {i}: retried where nothing turned red");
