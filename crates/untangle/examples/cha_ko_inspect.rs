@@ -2,7 +2,7 @@
 //! red* triangles, their red edges, the crossings they take part in and the operations.
 //!
 //! `cargo run --release -p untangle --example cha_ko_inspect -- cross 20,60,100 [seed]`
-use untangle::analysis::{analyze, AnalysisMesh, ObjectKind};
+use untangle::analysis::{analyze, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
 use untangle::methods::cha_ko::{ResolveParams, Resolver};
@@ -19,13 +19,7 @@ fn main() {
         .nth(3)
         .map_or(1, |s| s.parse().expect("a seed"));
     let scene = untangle::scenes::by_name(&which, None, seed).unwrap();
-    let parts: Vec<_> = scene
-        .meshes
-        .iter()
-        .map(|m| (m, ObjectKind::Cloth))
-        .collect();
-    let (am2, pos) = AnalysisMesh::new(&parts).unwrap();
-    let g = Garment::new(am2.merged(&pos, &scene.meshes.iter().collect::<Vec<_>>())).unwrap();
+    let g = Garment::new(AnalysisMesh::merge_cloth(&scene.meshes).unwrap()).unwrap();
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();
     let mut r = Resolver::new(&g, p).unwrap();

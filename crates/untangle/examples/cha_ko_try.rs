@@ -9,7 +9,7 @@
 //! `CHAKO_REVOKE`, the trial step's `CHAKO_TRIAL*` (see `common::trial_params`).
 mod common;
 
-use untangle::analysis::{AnalysisMesh, ObjectKind};
+use untangle::analysis::AnalysisMesh;
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
 use untangle::methods::cha_ko::{ResolveParams, Resolver};
@@ -26,13 +26,7 @@ fn main() {
         .unwrap_or(1);
     let g = if which != "exploded" {
         let scene = untangle::scenes::by_name(&which, (n > 0).then_some(n), seed).unwrap();
-        let parts: Vec<_> = scene
-            .meshes
-            .iter()
-            .map(|m| (m, ObjectKind::Cloth))
-            .collect();
-        let (am2, pos) = AnalysisMesh::new(&parts).unwrap();
-        Garment::new(am2.merged(&pos, &scene.meshes.iter().collect::<Vec<_>>())).unwrap()
+        Garment::new(AnalysisMesh::merge_cloth(&scene.meshes).unwrap()).unwrap()
     } else {
         Garment::new(untangle::scenes::exploded::exploded(seed, n).meshes[0].clone()).unwrap()
     };

@@ -2,7 +2,7 @@
 //! end intersection-free (checked by an independent analysis of the final positions) with the
 //! uv back at its original values.
 
-use untangle::analysis::{analyze, AnalysisMesh, ObjectKind};
+use untangle::analysis::{analyze, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
 use untangle::methods::cha_ko::{Outcome, ResolveParams, Resolver, StallReason};
@@ -20,13 +20,7 @@ fn closed_garment(n: usize) -> Garment {
 
 /// All pieces of a scene as the panels of one garment.
 fn scene_garment(scene: &untangle::scenes::Scene) -> Garment {
-    let parts: Vec<_> = scene
-        .meshes
-        .iter()
-        .map(|m| (m, ObjectKind::Cloth))
-        .collect();
-    let (am, pos) = AnalysisMesh::new(&parts).unwrap();
-    Garment::new(am.merged(&pos, &scene.meshes.iter().collect::<Vec<_>>())).unwrap()
+    Garment::new(AnalysisMesh::merge_cloth(&scene.meshes).unwrap()).unwrap()
 }
 
 /// Runs to the end and checks the outcome independently.

@@ -268,13 +268,7 @@ fn the_trial_loop_is_the_same_on_one_and_two_threads() {
 #[test]
 fn the_trial_loop_resolves_a_rudimentary_case() {
     let scene = untangle::scenes::by_name("closed", None, 1).unwrap();
-    let parts: Vec<_> = scene
-        .meshes
-        .iter()
-        .map(|m| (m, ObjectKind::Cloth))
-        .collect();
-    let (am, pos) = AnalysisMesh::new(&parts).unwrap();
-    let g = Garment::new(am.merged(&pos, &scene.meshes.iter().collect::<Vec<_>>())).unwrap();
+    let g = Garment::new(AnalysisMesh::merge_cloth(&scene.meshes).unwrap()).unwrap();
     let mut r = Resolver::new(&g, loop_params(400, 3)).unwrap();
     let s = r.run(|_| {}).unwrap();
     assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");

@@ -399,11 +399,7 @@ pub fn read_garment(files: &[PathBuf]) -> Result<Garment> {
             files[k].display()
         );
     }
-    let parts: Vec<_> = meshes.iter().map(|m| (m, ObjectKind::Cloth)).collect();
-    let (am, pos) = AnalysisMesh::new(&parts)?;
-    Ok(Garment::new(
-        am.merged(&pos, &meshes.iter().collect::<Vec<_>>()),
-    )?)
+    Ok(Garment::new(AnalysisMesh::merge_cloth(&meshes)?)?)
 }
 
 /// Runs `fix`; exit code 0 when the output is free of intersections, 1 otherwise.

@@ -98,6 +98,14 @@ impl AnalysisMesh {
         self.objects[self.object_of_triangle[t as usize] as usize].kind
     }
 
+    /// Cloth pieces as one mesh, each piece a group (and its uv layer its panels when every
+    /// piece has uv): the input of a garment made of several files or scene pieces.
+    pub fn merge_cloth(meshes: &[Mesh]) -> Result<Mesh> {
+        let parts: Vec<_> = meshes.iter().map(|m| (m, ObjectKind::Cloth)).collect();
+        let (am, pos) = AnalysisMesh::new(&parts)?;
+        Ok(am.merged(&pos, &meshes.iter().collect::<Vec<_>>()))
+    }
+
     /// All objects as one mesh (for writing): concatenated positions `pos`, uv layers of the
     /// parts kept where every part has one, one group per object.
     pub fn merged(&self, pos: &[Vec3], parts: &[&Mesh]) -> Mesh {
