@@ -39,14 +39,9 @@ fn main() {
         &m.triangles,
     ));
     let g = Garment::new(m.clone()).expect("valid garment");
-    let top = m.positions.iter().map(|p| p.z).fold(f64::MIN, f64::max);
     let make = |p: SimParams| {
         let mut sim = Simulator::new(&g, p).expect("simulator");
-        for (i, q) in m.positions.iter().enumerate() {
-            if q.z >= top - 0.01 {
-                sim.set_pinned(i as u32, true).unwrap();
-            }
-        }
+        common::pin_top(&mut sim, &m);
         sim
     };
     let policy = UniformThickness(2e-3);
@@ -57,12 +52,8 @@ fn main() {
         d.projective_anderson,
         true,
     ));
-    let v: Vec<Vec3> = m
-        .positions
-        .iter()
-        .map(|p| Vec3::new(0.3 * (top - p.z), 0.0, 0.0))
-        .collect();
-    sim.set_velocities(&v).unwrap();
+    let top = m.positions.iter().map(|p| p.z).fold(f64::MIN, f64::max);
+    sim.set_velocities(&common::sideways_push(&m, top)).unwrap();
     let samples: Vec<usize> = (0..steps).step_by(6).collect();
     let mut states = Vec::new();
     for k in 0..steps {

@@ -94,19 +94,8 @@ fn main() {
         ));
         let g = Garment::new(m.clone()).expect("valid garment");
         let mut sim = Simulator::new(&g, params()).expect("simulator");
-        let top = m.positions.iter().map(|p| p.z).fold(f64::MIN, f64::max);
-        for (i, p) in m.positions.iter().enumerate() {
-            if p.z >= top - 0.01 {
-                sim.set_pinned(i as u32, true).unwrap();
-            }
-        }
-        // A sideways push so that it swings.
-        let v: Vec<Vec3> = m
-            .positions
-            .iter()
-            .map(|p| Vec3::new(0.3 * (top - p.z), 0.0, 0.0))
-            .collect();
-        sim.set_velocities(&v).unwrap();
+        let top = common::pin_top(&mut sim, &m);
+        sim.set_velocities(&common::sideways_push(&m, top)).unwrap();
         timed(level, m.positions.len(), &mut sim);
     }
 }

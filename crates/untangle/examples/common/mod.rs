@@ -96,3 +96,23 @@ pub fn trial_params(p: &mut untangle::methods::cha_ko::Params) {
         p.trial_block = [TrialBlock::GreenGreen, TrialBlock::RedGreen][v as usize];
     }
 }
+
+/// The swinging-shirt start of `sim_bench` and `pd_accuracy`: pins the vertices within 1 cm of
+/// the mesh's top (largest z) and returns that top.
+pub fn pin_top(sim: &mut untangle::sim::Simulator, m: &Mesh) -> f64 {
+    let top = m.positions.iter().map(|p| p.z).fold(f64::MIN, f64::max);
+    for (i, p) in m.positions.iter().enumerate() {
+        if p.z >= top - 0.01 {
+            sim.set_pinned(i as u32, true).unwrap();
+        }
+    }
+    top
+}
+
+/// A sideways push growing with the distance below `top` (so that a top-pinned shirt swings).
+pub fn sideways_push(m: &Mesh, top: f64) -> Vec<untangle::geom::Vec3> {
+    m.positions
+        .iter()
+        .map(|p| untangle::geom::Vec3::new(0.3 * (top - p.z), 0.0, 0.0))
+        .collect()
+}
