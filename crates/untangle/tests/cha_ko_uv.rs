@@ -1452,3 +1452,99 @@ fn persistent_green_never_turns_a_green_vertex_red() {
     ck.persist_coloring(&am, &mut y);
     assert_eq!(y.coloring, a1.coloring);
 }
+
+#[test]
+fn pulls_start_only_across_cut_edges() {
+    // A red vertex whose edges to its green neighbours penetrate nothing (the rim of a BLI cone
+    // region) has nothing to cross: it is not pulled; across a cut edge, or toward a loop
+    // vertex, it is.
+    let n = 4;
+    let g = grid(n);
+    let x = gid(n, 2, 2);
+    let ranked = ranked_neighbours(&g, x);
+    let col = coloring(&g, &[x], &[], &[]);
+    let edge = |w: u32| g.topology.edge_between(x, w).unwrap();
+    let first = |params: Params, loops: &[u32], cut: Option<&[u32]>| {
+        let mut ck = ChaKo::new(&g, params).unwrap();
+        let r = ck.update_uv_with_paths(&col, loops, cut, None).unwrap();
+        let t = ck.operations().next().map(|o| o.target);
+        (r.pulls_started, t)
+    };
+    let p = Params::default();
+    assert!(p.pull_across_cut_edges);
+    assert_eq!(
+        first(p.clone(), &[], Some(&[edge(ranked[2])])),
+        (1, Some(ranked[2]))
+    );
+    assert_eq!(first(p.clone(), &[], Some(&[])), (0, None));
+    assert_eq!(
+        first(p.clone(), &[ranked[1]], Some(&[])),
+        (1, Some(ranked[1]))
+    );
+    // Cut edges unknown (a bare colouring), or the rule off: the paper's choice.
+    assert_eq!(first(p.clone(), &[], None), (1, Some(ranked[0])));
+    let off = Params {
+        pull_across_cut_edges: false,
+        ..Params::default()
+    };
+    assert_eq!(first(off, &[], Some(&[])), (1, Some(ranked[0])));
+}
+
+#[test]
+fn the_cut_edge_rule_changes_nothing_on_the_papers_coloring() {
+    // In the Sec. 3 colouring every red-green edge is a cut edge or ends at a loop vertex (the
+    // inside regions are flood fills stopped only there), so the pulls of the first update are
+    // the same with and without the rule. Checked on the analysis of the rudimentary scenes and
+    // of exploded handkerchiefs (BLI cone regions not coloured).
+    use untangle::analysis::{analyze, AnalysisMesh};
+    let mut scenes: Vec<Garment> = ["closed", "eight", "bbii", "bibi", "ll", "cross"]
+        .iter()
+        .map(|name| {
+            let s = untangle::scenes::by_name(name, None, 1).unwrap();
+            Garment::new(AnalysisMesh::merge_cloth(&s.meshes).unwrap()).unwrap()
+        })
+        .collect();
+    for seed in 1..=4 {
+        scenes.push(
+            Garment::new(untangle::scenes::exploded::exploded(seed, 10).meshes[0].clone()).unwrap(),
+        );
+    }
+    let mut checked = 0;
+    for g in &scenes {
+        let (am, pos) = AnalysisMesh::single(&g.mesh).unwrap();
+        let a = analyze(&am, &pos).unwrap();
+        let cut: Vec<u32> = a.crossings.iter().map(|c| c.edge).collect();
+        let loops: Vec<u32> = a
+            .paths
+            .iter()
+            .flat_map(|p| p.loop_vertices.iter().copied())
+            .collect();
+        let col = &a.coloring;
+        for &x in &col.outmost_red {
+            for &w in g.topology.vertex_neighbors.row(x as usize) {
+                if col.red_vertex[w as usize] {
+                    continue;
+                }
+                let e = g.topology.edge_between(x, w).unwrap();
+                assert!(
+                    cut.contains(&e) || loops.contains(&w),
+                    "{}: red {x} - green {w} is neither cut nor at a loop vertex",
+                    g.mesh.name
+                );
+                checked += 1;
+            }
+        }
+        let ops = |params: Params| {
+            let mut ck = ChaKo::new(g, params).unwrap();
+            let r = ck.update_uv(&am, &a, &pos).unwrap();
+            let ops: Vec<(u32, u32)> = ck.operations().map(|o| (o.subjects[0], o.target)).collect();
+            (r.pulls_started, r.shrinks_started, ops)
+        };
+        let off = Params {
+            pull_across_cut_edges: false,
+            ..Params::default()
+        };
+        assert_eq!(ops(Params::default()), ops(off), "{}", g.mesh.name);
+    }
+    assert!(checked > 100, "{checked}");
+}

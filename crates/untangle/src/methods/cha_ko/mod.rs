@@ -67,6 +67,9 @@ pub struct ChaKo {
     /// Loop vertices of the step's intersection paths (sorted): a red* triangle is not shrunk
     /// toward one (see [`schedule`]).
     loop_vertices: Vec<u32>,
+    /// Edges that penetrate a triangle in the step's analysis (empty when unknown, as with a
+    /// bare colouring): pulls start across them (see [`Params::pull_across_cut_edges`]).
+    cut_edge: Vec<bool>,
     /// Red vertices of the previous step's colouring (for [`Params::persistent_green`]).
     prev_red: Option<Vec<bool>>,
     /// Shrinks toward a loop vertex started as a last resort (see [`schedule`]).
@@ -92,6 +95,7 @@ impl ChaKo {
             moved: vec![0; n],
             tabu: Default::default(),
             loop_vertices: Vec::new(),
+            cut_edge: Vec::new(),
             prev_red: None,
             last_resort_ops: Default::default(),
             params,
@@ -191,7 +195,8 @@ impl ChaKo {
             .iter()
             .flat_map(|p| p.loop_vertices.iter().copied())
             .collect();
-        self.update_uv_with_loops(&analysis.coloring, &lv, Some(positions))
+        let cut: Vec<u32> = analysis.crossings.iter().map(|c| c.edge).collect();
+        self.update_uv_with_paths(&analysis.coloring, &lv, Some(&cut), Some(positions))
     }
 
     /// One update from a colouring and the loop vertices of its intersection paths (Wicke et
@@ -204,12 +209,38 @@ impl ChaKo {
         loop_vertices: &[u32],
         positions: Option<&[Vec3]>,
     ) -> Result<UvUpdateReport> {
+        self.update_uv_with_paths(coloring, loop_vertices, None, positions)
+    }
+
+    /// One update from a colouring, the loop vertices of its intersection paths and, when
+    /// known, its *cut edges* (edges that penetrate a triangle, i.e. the edges of
+    /// [`crate::analysis::Crossing`]s, any order, duplicates and edges beyond the garment's
+    /// allowed), as [`ChaKo::update_uv`] takes them from an analysis: besides the loop-vertex
+    /// rules, a pull then starts only across a cut edge or toward a loop vertex
+    /// ([`Params::pull_across_cut_edges`]). `None` leaves that rule off.
+    pub fn update_uv_with_paths(
+        &mut self,
+        coloring: &Coloring,
+        loop_vertices: &[u32],
+        cut_edges: Option<&[u32]>,
+        positions: Option<&[Vec3]>,
+    ) -> Result<UvUpdateReport> {
         let mut lv = loop_vertices.to_vec();
         lv.sort_unstable();
         lv.dedup();
         self.loop_vertices = lv;
+        if let Some(cut) = cut_edges {
+            let ne = self.mesh.garment.topology.num_edges();
+            self.cut_edge = vec![false; ne];
+            for &e in cut {
+                if (e as usize) < ne {
+                    self.cut_edge[e as usize] = true;
+                }
+            }
+        }
         let r = self.update_uv_with_coloring(coloring, positions);
         self.loop_vertices.clear();
+        self.cut_edge.clear();
         r
     }
 

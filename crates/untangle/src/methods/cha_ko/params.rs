@@ -54,6 +54,13 @@ pub struct Params {
     /// choice); a running pull whose target later becomes a loop vertex goes on (experiment,
     /// ours; off by default).
     pub avoid_loop_pull_targets_at_start: bool,
+    /// A pull starts only toward a green neighbour across a *cut edge* (an edge that penetrates
+    /// a triangle, so the path separates the two ends) or toward a loop vertex (ours, see
+    /// [`super::schedule`]). In the paper's colouring (Sec. 3) every red-green edge is such an
+    /// edge, so the rule changes nothing there; it matters for regions bounded elsewhere, such
+    /// as the BLI cone regions of Wicke's heuristic, whose rim vertices have green neighbours
+    /// that no path separates: pulling them saturates without moving anything across.
+    pub pull_across_cut_edges: bool,
     /// Which edge-edge pairs with a *mixed* edge (one red, one green end) m-CCH lets cross
     /// (experiment, ours; see [`MixedEdges`]). Default: the paper's (such an edge is red).
     pub mixed_edges: MixedEdges,
@@ -89,6 +96,7 @@ impl Default for Params {
             loop_target_last_resort: true,
             avoid_loop_pull_targets: false,
             avoid_loop_pull_targets_at_start: false,
+            pull_across_cut_edges: true,
             mixed_edges: MixedEdges::Red,
             trial_retries: 0,
             trial_block: TrialBlock::GreenGreen,

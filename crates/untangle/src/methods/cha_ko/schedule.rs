@@ -60,6 +60,17 @@
 //!   vertices of an LL path, saturating three times (world edge 8x its rest length).
 //!   [`super::Params::avoid_loop_pull_targets_at_start`] (experiment, off) applies the rule to
 //!   the target choice only: running pulls go on when their target becomes a loop vertex.
+//! - A pull starts only toward a green neighbour across a *cut edge* (an edge that penetrates a
+//!   triangle) or toward a loop vertex (ours, [`super::Params::pull_across_cut_edges`], on;
+//!   needs the cut edges, which [`super::ChaKo::update_uv`] takes from the analysis). The
+//!   VT-type finesse (Sec. 7, Fig. 11a) moves the subject across the triangle its edge to the
+//!   target penetrates; with no such triangle there is nothing to cross and the pull can only
+//!   saturate. In the paper's colouring every red-green edge is a cut edge (the inside region is
+//!   a flood fill stopped only by cut edges and loop vertices), so this changes nothing there.
+//!   It matters for the BLI cone regions of Wicke's heuristic, which are cut off by a geodesic
+//!   disc as well: their rim vertices have green neighbours that no path separates. In the LL
+//!   case such a rim vertex was pulled, saturated, abandoned and pulled again for 250 steps
+//!   after the LL path had turned into a BLI; with the rule LL resolves (73 steps).
 //! - Sec. 6.1 (no TIT-passable fan): a candidate whose every proposal fails the test yields its
 //!   turn (lines 4 and 8). After both loops, such candidates whose subjects and fans are still
 //!   untouched get a fallback operation ([`super::fallback`]), so a regular operation always has
@@ -97,6 +108,7 @@ impl ChaKo {
             tabu,
             loop_vertices,
             last_resort_ops,
+            cut_edge,
             ..
         } = self;
         let step = *step;
@@ -286,6 +298,14 @@ impl ChaKo {
                 .iter()
                 .copied()
                 .filter(|&w| !col.red_vertex[w as usize])
+                .filter(|&w| {
+                    !params.pull_across_cut_edges
+                        || cut_edge.is_empty()
+                        || loop_vertices.binary_search(&w).is_ok()
+                        || topo
+                            .edge_between(x, w)
+                            .is_some_and(|e| cut_edge[e as usize])
+                })
                 .collect();
             let candidates: Vec<u32> = green
                 .iter()
