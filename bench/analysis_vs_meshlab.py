@@ -82,11 +82,14 @@ def main():
     exe = os.path.join(ROOT, "target", "release", "untangle")
     out = os.path.join(ROOT, "target", "bench-scenes")
     os.makedirs(out, exist_ok=True)
-    scenes = [("folded", ["--size", "125"]), ("folded", ["--size", "224"])] + [("exploded", ["--seed", str(s)]) for s in range(3)]
+    big = [20, 28, 40]  # larger exploded balls (seed 0): crossing pairs grow with the square of the triangles
+    scenes = [("folded", ["--size", "125"]), ("folded", ["--size", "224"])] + [("exploded", ["--seed", str(s)]) for s in range(3)] \
+        + [("exploded", ["--size", str(n), "--seed", "0"]) for n in big]
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "untangle", "--example", "analysis_bench"], cwd=ROOT, check=True)
     bench = os.path.join(ROOT, "target", "release", "examples", "analysis_bench")
     only_of = {"folded --size 125": "folded n=125 dents=4", "folded --size 224": "folded n=224 dents=4",
-               **{f"exploded --seed {s}": f"exploded seed={s}" for s in range(3)}}
+               **{f"exploded --seed {s}": f"exploded seed={s}" for s in range(3)},
+               **{f"exploded --size {n} --seed 0": f"exploded n={n} seed=0" for n in big}}
 
     def warm(only, threads):
         env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
@@ -120,7 +123,8 @@ def main():
         env = dict(os.environ, RAYON_NUM_THREADS="1")
         print("\ninstructions per call (callgrind, single thread):")
         for name, only, f in [("folded --size 125", "folded n=125 dents=4", "folded--size125.obj")] + [
-                (f"exploded --seed {s}", f"exploded seed={s}", f"exploded--seed{s}.obj") for s in range(3)]:
+                (f"exploded --seed {s}", f"exploded seed={s}", f"exploded--seed{s}.obj") for s in range(3)] + [
+                (f"exploded --size {n}", f"exploded n={n} seed=0", f"exploded--size{n}--seed0.obj") for n in big]:
             ours = per_call(lambda n: [bench, "--runs", str(n), "--only", only], env)
             ml = per_call(lambda n: [py, "-c", ML_CG, os.path.join(out, f), str(n)])
             print(f"{name:<22} ours {ours/1e6:8.1f} M   MeshLab {ml/1e6:8.1f} M   ratio {ml/ours:.2f}x")

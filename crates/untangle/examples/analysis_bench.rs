@@ -91,14 +91,24 @@ fn main() {
         }
     }
     if want("exploded") {
-        for seed in [0, 1, 2] {
-            let name = format!("exploded seed={seed}");
+        // The paper's size (14 x 14 cells) for seeds 0-2, then larger balls (seed 0): the number
+        // of crossing pairs grows with the square of the triangles thrown into the ball.
+        let cases = [(14, 0), (14, 1), (14, 2), (20, 0), (28, 0), (40, 0)];
+        for (n, seed) in cases {
+            let name = if n == 14 {
+                format!("exploded seed={seed}")
+            } else {
+                format!("exploded n={n} seed={seed}")
+            };
             if let Some(o) = &only {
-                if o.len() > "exploded".len() && !name.starts_with(o.as_str()) {
+                if o.len() > "exploded".len()
+                    && name != *o
+                    && !(n == 14 && name.starts_with(o.as_str()))
+                {
                     continue;
                 }
             }
-            let s = scenes::exploded::exploded(seed, 14);
+            let s = scenes::exploded::exploded(seed, n);
             bench(&name, &s.meshes, runs);
         }
     }

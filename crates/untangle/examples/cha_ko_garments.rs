@@ -25,7 +25,9 @@ fn main() {
     let (min_vertices, tangle_steps, max_steps) = (arg(1, 2000), arg(2, 25), arg(3, 600));
     println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    // CHAKO_ONLY=<name>: one garment; CHAKO_STALLS=1: print the last stalls of a run.
+    // CHAKO_ONLY=<name>: one garment; CHAKO_STALLS=1: print the last stalls of a run;
+    // CHAKO_KINDS=1: the path kinds (and their inside-region sizes) before and after;
+    // CHAKO_WRITE=<dir>: the tangled garment as <dir>/<name>_tangled.obj.
     let only = std::env::var("CHAKO_ONLY").ok();
     for name in ["tshirt", "dress3", "pants3"] {
         if only.as_deref().is_some_and(|o| o != name) {
@@ -49,6 +51,11 @@ fn main() {
             .iter()
             .filter(|p| p.kind == PathKind::BoundaryLoopInside)
             .count();
+        if let Ok(dir) = std::env::var("CHAKO_WRITE") {
+            let path = std::path::Path::new(&dir).join(format!("{name}_tangled.obj"));
+            untangle::mesh::obj::write_obj(&path, &tangled, None, "sagged, self-collision off")
+                .expect("write");
+        }
         let tg = Garment::new(tangled).expect("garment");
         let mut p = ResolveParams::default();
         p.sim.gravity = gravity;
@@ -94,6 +101,24 @@ fn main() {
             s.mean_ms[2],
             wall
         );
+        if std::env::var("CHAKO_KINDS").is_ok() {
+            let a1 = analyze(&am, r.simulator().positions()).expect("analysis");
+            for (when, a) in [("after tangling", &a0), ("at the end", &a1)] {
+                let mut kinds = std::collections::BTreeMap::<String, (usize, usize)>::new();
+                for (p, reg) in a.paths.iter().zip(&a.regions) {
+                    let e = kinds.entry(format!("{:?}", p.kind)).or_default();
+                    e.0 += 1;
+                    if let untangle::analysis::Region::Inside(vs) = reg {
+                        e.1 += vs.len();
+                    }
+                }
+                println!(
+                    "  {when}: {} pairs, {} red vertices; paths (count, inside vertices) {kinds:?}",
+                    a.segments.len(),
+                    a.coloring.num_red_vertices()
+                );
+            }
+        }
         if std::env::var("CHAKO_STALLS").is_ok() {
             let h = r.history();
             for st in h.iter().rev().take(5).rev() {

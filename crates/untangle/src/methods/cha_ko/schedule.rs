@@ -258,7 +258,17 @@ impl ChaKo {
             moved[kk as usize] = stamp;
         }
 
-        // Lines 6-9: out-most red vertices.
+        // Lines 6-9: out-most red vertices. A pull starts only across a cut edge or toward a
+        // loop vertex (see the module text); once started it goes on like any other (ending it
+        // when its edge stops being cut made the BLI case cycle: pull, revoke, pull again).
+        let across_cut = |x: u32, w: u32| {
+            !params.pull_across_cut_edges
+                || cut_edge.is_empty()
+                || loop_vertices.binary_search(&w).is_ok()
+                || topo
+                    .edge_between(x, w)
+                    .is_some_and(|e| cut_edge[e as usize])
+        };
         for &x in &col.outmost_red {
             if x >= nv {
                 continue;
@@ -297,15 +307,7 @@ impl ChaKo {
             let green: Vec<u32> = vertex_fan(topo, x)
                 .iter()
                 .copied()
-                .filter(|&w| !col.red_vertex[w as usize])
-                .filter(|&w| {
-                    !params.pull_across_cut_edges
-                        || cut_edge.is_empty()
-                        || loop_vertices.binary_search(&w).is_ok()
-                        || topo
-                            .edge_between(x, w)
-                            .is_some_and(|e| cut_edge[e as usize])
-                })
+                .filter(|&w| !col.red_vertex[w as usize] && across_cut(x, w))
                 .collect();
             let candidates: Vec<u32> = green
                 .iter()
