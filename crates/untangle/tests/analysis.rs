@@ -426,15 +426,145 @@ fn report_is_identical_for_one_and_two_threads() {
     assert!(r1.intersecting_triangle_pairs > 100);
 }
 
-/// BLI paths (outside Cha & Ko's method) get an inside region by Wicke's cone heuristic: a
-/// geodesic disc around the loop vertex reaching the nearer end of the path, split by the path.
+/// The BLI fan of `rudimentary::bli` closed into a full disc by two triangles on the far side of
+/// its diameter (core vertex 6, world position away from both wedges): the same tanglement with
+/// its loop vertex (core vertex 0) in the interior, where no half of the path separates anything.
+fn bli_with_interior_apex(levels: usize) -> Mesh {
+    use untangle::mesh::{subdivide::subdivide_n, Group, UvLayer};
+    let uv: Vec<Vec2> = [
+        [0.0, 0.0],
+        [1.0, 0.0],
+        [0.5, 0.866],
+        [-0.5, 0.866],
+        [-0.866, 0.5],
+        [-1.0, 0.0],
+        [0.0, -1.0],
+    ]
+    .iter()
+    .map(|p| Vec2::new(p[0], p[1]))
+    .collect();
+    let world: Vec<Vec3> = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.6428, 0.0, 0.7660],
+        [-0.1736, 0.0, 0.9848],
+        [-0.45, 0.3, 0.779],
+        [0.55, -0.5, 0.55],
+        [0.6, -0.8, -0.2],
+    ]
+    .iter()
+    .map(|p| Vec3::new(p[0], p[1], p[2]))
+    .collect();
+    let tris = vec![
+        [0u32, 1, 2],
+        [0, 2, 3],
+        [0, 3, 4],
+        [0, 4, 5],
+        [0, 5, 6],
+        [0, 6, 1],
+    ];
+    let m = Mesh {
+        name: "bli_interior".into(),
+        positions: world,
+        triangles: tris.clone(),
+        uv: Some(UvLayer {
+            coords: uv,
+            triangles: tris.clone(),
+        }),
+        groups: vec![Group {
+            name: "bli_interior".into(),
+            first: 0,
+            count: tris.len() as u32,
+            is_object: true,
+        }],
+        source: None,
+    };
+    subdivide_n(&m, levels)
+}
+
+/// The components of the mesh's vertex graph without the `removed` vertices and the `cut` edges
+/// (breadth-first search; the oracle of the flood fills).
+fn components(am: &AnalysisMesh, removed: &[u32], cut: &[u32]) -> Vec<Vec<u32>> {
+    let topo = &am.topology;
+    let n = am.num_vertices();
+    let mut comp = vec![usize::MAX; n];
+    let mut out: Vec<Vec<u32>> = Vec::new();
+    for s in 0..n as u32 {
+        if comp[s as usize] != usize::MAX || removed.contains(&s) {
+            continue;
+        }
+        let id = out.len();
+        let mut queue = vec![s];
+        comp[s as usize] = id;
+        let mut i = 0;
+        while i < queue.len() {
+            let v = queue[i];
+            i += 1;
+            for (&w, &e) in topo
+                .vertex_neighbors
+                .row(v as usize)
+                .iter()
+                .zip(topo.vertex_edges.row(v as usize))
+            {
+                if comp[w as usize] == usize::MAX && !removed.contains(&w) && !cut.contains(&e) {
+                    comp[w as usize] = id;
+                    queue.push(w);
+                }
+            }
+        }
+        queue.sort_unstable();
+        out.push(queue);
+    }
+    out
+}
+
+/// A BLI path whose loop vertex is on the boundary (the fan of `rudimentary::bli`) separates its
+/// mesh along the half that ends on the boundary: its inside region is the smaller side, as for
+/// a BB path — checked against the components of the cut graph — and it holds the dipping
+/// wedge's tip (core vertex 5), the part that went through.
+#[test]
+fn bli_paths_with_a_boundary_loop_vertex_get_the_smaller_side() {
+    for lv in 1..4 {
+        let s = rudimentary::bli(lv);
+        let (am, pos) = AnalysisMesh::single(&s.meshes[0]).unwrap();
+        let a = analyze(&am, &pos).unwrap();
+        assert_eq!(a.paths.len(), 1);
+        let p = &a.paths[0];
+        assert_eq!(p.kind, PathKind::BoundaryLoopInside);
+        assert!(p
+            .loop_vertices
+            .iter()
+            .all(|&v| am.topology.boundary_vertex[v as usize]));
+        let Region::Inside(inside) = &a.regions[0] else {
+            panic!("level {lv}: region expected, got {:?}", a.regions[0]);
+        };
+        let mut comps = components(&am, &p.loop_vertices, &p.cut_edges);
+        assert_eq!(comps.len(), 2, "level {lv}: the boundary half separates");
+        comps.sort_by_key(|c| c.len());
+        assert_eq!(inside, &comps[0], "level {lv}");
+        assert!(inside.contains(&5), "level {lv}: the dipping tip is inside");
+    }
+}
+
+/// BLI paths whose loop vertex is interior separate nothing; they get an inside region by
+/// Wicke's cone heuristic: a geodesic disc around the loop vertex reaching the nearer end of
+/// the path, split by the path.
 #[test]
 fn bli_paths_get_a_cone_region_near_their_loop_vertex() {
     use untangle::analysis::{analyze_with, Options};
     for lv in 1..4 {
-        let s = rudimentary::bli(lv);
-        let (am, pos) = AnalysisMesh::single(&s.meshes[0]).unwrap();
+        let m = bli_with_interior_apex(lv);
+        let (am, pos) = AnalysisMesh::single(&m).unwrap();
         let plain = analyze(&am, &pos).unwrap();
+        assert_eq!(plain.paths.len(), 1, "level {lv}");
+        assert_eq!(plain.paths[0].kind, PathKind::BoundaryLoopInside);
+        assert_eq!(plain.paths[0].loop_vertices, vec![0], "level {lv}");
+        assert!(!am.topology.boundary_vertex[0]);
+        assert_eq!(
+            components(&am, &[0], &plain.paths[0].cut_edges).len(),
+            1,
+            "level {lv}: an interior BLI separates nothing"
+        );
         assert_eq!(
             plain.coloring.num_red_vertices(),
             0,

@@ -67,6 +67,17 @@ fn rudimentary_cases_resolve() {
 }
 
 #[test]
+fn bli_case_resolves_beyond_the_paper() {
+    // BLI is outside Cha & Ko's method. With BLI regions coloured (the loop's default) the
+    // boundary half of a BLI path whose loop vertex is on the boundary gives a true inside
+    // region (`RegionFinder::bli_boundary_partition`), and its pulls resolve the case.
+    assert!(params(1).analysis.bli_regions_red);
+    let scene = untangle::scenes::by_name("bli", None, 1).unwrap();
+    let s = resolves(&scene_garment(&scene), 400);
+    assert!(s.initial_red_vertices > 0);
+}
+
+#[test]
 fn unresolved_cases_stop_and_say_where() {
     // BLI without cone regions (the paper's method alone) and CROSS: operations saturate, are
     // abandoned and retried, and the loop stops as stuck with every saturation reported by

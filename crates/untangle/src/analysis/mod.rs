@@ -114,7 +114,10 @@ pub fn analyze_with(
                 return Region::None;
             }
             if p.kind == PathKind::BoundaryLoopInside {
-                let r = finder.bli_cone(p, &segs.segments, pos);
+                let r = match finder.bli_boundary_partition(p) {
+                    r @ Region::Inside(_) => r,
+                    _ => finder.bli_cone(p, &segs.segments, pos),
+                };
                 if let (Region::Inside(vs), true) = (&r, options.bli_regions_red) {
                     for &v in vs {
                         red_vertex[v as usize] = true;

@@ -113,6 +113,58 @@ impl<'a> RegionFinder<'a> {
         self.flood(path, Some(rs))
     }
 
+    /// The inside region of a BLI path whose loop vertex lies on the boundary (ours): the half
+    /// of the path from the loop vertex to its `B` end then runs from boundary to boundary and
+    /// separates the mesh like a BB path, so the smaller side is a true inside region, with no
+    /// disc to cut it off (the other half ends inside and only slits the surface). The flood is
+    /// seeded from the cut edges in turn until one separates (a seed on the slit does not), at
+    /// most `MAX_SEEDS` of them spread over the cut; [`Region::NotSeparating`] when none does or
+    /// the loop vertex is interior.
+    pub fn bli_boundary_partition(&mut self, path: &Path) -> Region {
+        const MAX_SEEDS: usize = 8;
+        let topo = &self.mesh.topology;
+        if path.kind != PathKind::BoundaryLoopInside
+            || path.cut_edges.is_empty()
+            || !path
+                .loop_vertices
+                .iter()
+                .all(|&v| topo.boundary_vertex[v as usize])
+        {
+            return Region::NotSeparating;
+        }
+        let n = path.cut_edges.len();
+        let stride = n.div_ceil(MAX_SEEDS).max(1);
+        for k in (0..n).step_by(stride) {
+            self.stamp += 1;
+            let st = self.stamp;
+            for &e in &path.cut_edges {
+                self.edge_stamp[e as usize] = st;
+            }
+            for &v in &path.loop_vertices {
+                self.vertex_stamp[v as usize] = st;
+                self.vertex_side[v as usize] = 2;
+            }
+            let [a, b] = self.mesh.topology.edges[path.cut_edges[k] as usize];
+            let free = |v: u32| {
+                !(self.vertex_stamp[v as usize] == st && self.vertex_side[v as usize] == 2)
+            };
+            if !(free(a) && free(b)) {
+                continue;
+            }
+            let mut queues = std::mem::take(&mut self.queues);
+            for (q, s) in queues.iter_mut().zip([a, b]) {
+                q.clear();
+                q.push(s);
+            }
+            let region = self.lock_step(&mut queues, st, None);
+            self.queues = queues;
+            if let Region::Inside(_) = region {
+                return region;
+            }
+        }
+        Region::NotSeparating
+    }
+
     /// The inside region of `path` (smaller side of its cut).
     pub fn inside(&mut self, path: &Path) -> Region {
         if !path.kind.is_partitioning() {
