@@ -38,8 +38,17 @@ fn main() {
                 c.outmost_red,
                 c.red_star
             );
-            for path in &a.paths {
-                println!("path {:?} loops {:?}", path.kind, path.loop_vertices);
+            for (path, region) in a.paths.iter().zip(&a.regions) {
+                let region = match region {
+                    untangle::analysis::Region::Inside(vs) => format!("inside {vs:?}"),
+                    other => format!("{other:?}"),
+                };
+                println!(
+                    "path {:?} loops {:?} cut edges {} region {region}",
+                    path.kind,
+                    path.loop_vertices,
+                    path.cut_edges.len()
+                );
             }
             for cr in &a.crossings {
                 let e = topo.edges[cr.edge as usize];
