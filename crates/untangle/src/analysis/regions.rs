@@ -135,29 +135,12 @@ impl<'a> RegionFinder<'a> {
         let n = path.cut_edges.len();
         let stride = n.div_ceil(MAX_SEEDS).max(1);
         for k in (0..n).step_by(stride) {
-            self.stamp += 1;
-            let st = self.stamp;
-            for &e in &path.cut_edges {
-                self.edge_stamp[e as usize] = st;
-            }
-            for &v in &path.loop_vertices {
-                self.vertex_stamp[v as usize] = st;
-                self.vertex_side[v as usize] = 2;
-            }
+            let st = self.stamp_cut(path);
             let [a, b] = self.mesh.topology.edges[path.cut_edges[k] as usize];
-            let free = |v: u32| {
-                !(self.vertex_stamp[v as usize] == st && self.vertex_side[v as usize] == 2)
-            };
-            if !(free(a) && free(b)) {
+            if self.removed(a, st) || self.removed(b, st) {
                 continue;
             }
-            let mut queues = std::mem::take(&mut self.queues);
-            for (q, s) in queues.iter_mut().zip([a, b]) {
-                q.clear();
-                q.push(s);
-            }
-            let region = self.lock_step(&mut queues, st, None);
-            self.queues = queues;
+            let region = self.flood_from([a, b], st, None);
             if let Region::Inside(_) = region {
                 return region;
             }
@@ -179,30 +162,42 @@ impl<'a> RegionFinder<'a> {
             return Region::None;
         }
         let topo = &self.mesh.topology;
+        let st = self.stamp_cut(path);
+        let seed = path.cut_edges.iter().find_map(|&e| {
+            let [a, b] = topo.edges[e as usize];
+            (!self.removed(a, st) && !self.removed(b, st)).then_some([a, b])
+        });
+        let Some(seed) = seed else {
+            return Region::None;
+        };
+        self.flood_from(seed, st, roi)
+    }
+
+    /// A new stamp with the path's cut edges and its loop vertices (removed: side 2) marked.
+    fn stamp_cut(&mut self, path: &Path) -> u32 {
         self.stamp += 1;
         let st = self.stamp;
         for &e in &path.cut_edges {
             self.edge_stamp[e as usize] = st;
         }
-        // Removed vertices (loop vertices on the path) are stamped with side 2.
         for &v in &path.loop_vertices {
             self.vertex_stamp[v as usize] = st;
             self.vertex_side[v as usize] = 2;
         }
-        let seed = path.cut_edges.iter().find_map(|&e| {
-            let [a, b] = topo.edges[e as usize];
-            let free = |v: u32| {
-                !(self.vertex_stamp[v as usize] == st && self.vertex_side[v as usize] == 2)
-            };
-            (free(a) && free(b)).then_some([a, b])
-        });
-        let Some(seed) = seed else {
-            return Region::None;
-        };
+        st
+    }
+
+    /// Whether `v` is removed (a loop vertex of the cut stamped `st`).
+    fn removed(&self, v: u32, st: u32) -> bool {
+        self.vertex_stamp[v as usize] == st && self.vertex_side[v as usize] == 2
+    }
+
+    /// The lock-step flood from the two ends of a cut edge under stamp `st`.
+    fn flood_from(&mut self, seed: [u32; 2], st: u32, roi: Option<u32>) -> Region {
         let mut queues = std::mem::take(&mut self.queues);
-        for s in 0..2 {
-            queues[s].clear();
-            queues[s].push(seed[s]);
+        for (q, s) in queues.iter_mut().zip(seed) {
+            q.clear();
+            q.push(s);
         }
         let region = self.lock_step(&mut queues, st, roi);
         self.queues = queues;
