@@ -426,62 +426,6 @@ fn report_is_identical_for_one_and_two_threads() {
     assert!(r1.intersecting_triangle_pairs > 100);
 }
 
-/// The BLI fan of `rudimentary::bli` closed into a full disc by two triangles on the far side of
-/// its diameter (core vertex 6, world position away from both wedges): the same tanglement with
-/// its loop vertex (core vertex 0) in the interior, where no half of the path separates anything.
-fn bli_with_interior_apex(levels: usize) -> Mesh {
-    use untangle::mesh::{subdivide::subdivide_n, Group, UvLayer};
-    let uv: Vec<Vec2> = [
-        [0.0, 0.0],
-        [1.0, 0.0],
-        [0.5, 0.866],
-        [-0.5, 0.866],
-        [-0.866, 0.5],
-        [-1.0, 0.0],
-        [0.0, -1.0],
-    ]
-    .iter()
-    .map(|p| Vec2::new(p[0], p[1]))
-    .collect();
-    let world: Vec<Vec3> = [
-        [0.0, 0.0, 0.0],
-        [1.0, 0.0, 0.0],
-        [0.6428, 0.0, 0.7660],
-        [-0.1736, 0.0, 0.9848],
-        [-0.45, 0.3, 0.779],
-        [0.55, -0.5, 0.55],
-        [0.6, -0.8, -0.2],
-    ]
-    .iter()
-    .map(|p| Vec3::new(p[0], p[1], p[2]))
-    .collect();
-    let tris = vec![
-        [0u32, 1, 2],
-        [0, 2, 3],
-        [0, 3, 4],
-        [0, 4, 5],
-        [0, 5, 6],
-        [0, 6, 1],
-    ];
-    let m = Mesh {
-        name: "bli_interior".into(),
-        positions: world,
-        triangles: tris.clone(),
-        uv: Some(UvLayer {
-            coords: uv,
-            triangles: tris.clone(),
-        }),
-        groups: vec![Group {
-            name: "bli_interior".into(),
-            first: 0,
-            count: tris.len() as u32,
-            is_object: true,
-        }],
-        source: None,
-    };
-    subdivide_n(&m, levels)
-}
-
 /// The components of the mesh's vertex graph without the `removed` vertices and the `cut` edges
 /// (breadth-first search; the oracle of the flood fills).
 fn components(am: &AnalysisMesh, removed: &[u32], cut: &[u32]) -> Vec<Vec<u32>> {
@@ -553,8 +497,8 @@ fn bli_paths_with_a_boundary_loop_vertex_get_the_smaller_side() {
 fn bli_paths_get_a_cone_region_near_their_loop_vertex() {
     use untangle::analysis::{analyze_with, Options};
     for lv in 1..4 {
-        let m = bli_with_interior_apex(lv);
-        let (am, pos) = AnalysisMesh::single(&m).unwrap();
+        let s = rudimentary::bli_interior(lv);
+        let (am, pos) = AnalysisMesh::single(&s.meshes[0]).unwrap();
         let plain = analyze(&am, &pos).unwrap();
         assert_eq!(plain.paths.len(), 1, "level {lv}");
         assert_eq!(plain.paths[0].kind, PathKind::BoundaryLoopInside);

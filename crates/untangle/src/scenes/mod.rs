@@ -30,13 +30,22 @@ pub struct Scene {
 
 /// Names accepted by [`by_name`].
 pub const NAMES: &[&str] = &[
-    "closed", "ll", "eight", "cross", "bbii", "bibi", "bli", "exploded", "folded",
+    "closed",
+    "ll",
+    "eight",
+    "cross",
+    "bbii",
+    "bibi",
+    "bli",
+    "bli-interior",
+    "exploded",
+    "folded",
 ];
 
 /// Builds a scene by name; `size` is the handkerchief resolution (cells per side, `None` for the
 /// default) and `seed` drives random scenes.
 ///
-/// For the loop-vertex cores (`ll`, `eight`, `cross`, `bli`) `size` is the number of subdivision
+/// For the loop-vertex cores (`ll`, `eight`, `cross`, `bli`, `bli-interior`) `size` is the number of subdivision
 /// levels (default 2); for `folded` it is the cells per side (default 125: 31,250 triangles, 4
 /// dents); for `exploded` the cells per side (default 14) and `seed` the random draw; for `skirt`
 /// the cells around each panel (default 40, 3 dents).
@@ -47,6 +56,7 @@ pub fn by_name(name: &str, size: Option<usize>, seed: u64) -> Option<Scene> {
         "eight" => rudimentary::eight(size.unwrap_or(2)),
         "cross" => rudimentary::cross(size.unwrap_or(2)),
         "bli" => rudimentary::bli(size.unwrap_or(2)),
+        "bli-interior" => rudimentary::bli_interior(size.unwrap_or(2)),
         "bbii" => rudimentary::bb_ii(size.unwrap_or(16)),
         "bibi" => rudimentary::bi_bi(size.unwrap_or(16)),
         "exploded" => exploded::exploded(seed, size.unwrap_or(14)),

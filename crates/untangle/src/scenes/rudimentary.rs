@@ -127,6 +127,38 @@ pub fn bli(levels: usize) -> Scene {
     }
 }
 
+/// BLI with an interior loop vertex: the fan of [`bli`] closed into a full disc by two more
+/// triangles on the far side of its diameter (core vertex 6, away from both wedges). The same
+/// tanglement, but no half of the path separates anything: the inside region comes from Wicke's
+/// cone heuristic.
+pub fn bli_interior(levels: usize) -> Scene {
+    let uv = [
+        [0.0, 0.0],
+        [1.0, 0.0],
+        [0.5, 0.866],
+        [-0.5, 0.866],
+        [-0.866, 0.5],
+        [-1.0, 0.0],
+        [0.0, -1.0],
+    ];
+    let mut world = CROSS_WORLD[..6].to_vec();
+    world.push([0.6, -0.8, -0.2]);
+    let tris = [
+        [0u32, 1, 2],
+        [0, 2, 3],
+        [0, 3, 4],
+        [0, 4, 5],
+        [0, 5, 6],
+        [0, 6, 1],
+    ];
+    let m = core("bli_interior", &uv, &world, &tris, levels);
+    Scene {
+        name: "bli-interior".into(),
+        meshes: vec![m],
+        expected: vec![("BLI", 1)],
+    }
+}
+
 /// BB/II: handkerchief B lies above A and its right edge is bent down through A, so the curve
 /// runs across B from boundary to boundary (BB) and inside A (II).
 pub fn bb_ii(n: usize) -> Scene {
