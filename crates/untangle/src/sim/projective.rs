@@ -722,9 +722,10 @@ impl Projective {
                         if problem.filter[i] == Filter::Fixed {
                             return Vec3::zeros();
                         }
+                        let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
                         let mut ax = Vec3::zeros();
-                        for s in p.offsets[i] as usize..p.offsets[i + 1] as usize {
-                            ax += xs[p.cols[s] as usize] * problem.values[s];
+                        for (&c, &w) in p.cols[row.clone()].iter().zip(&problem.values[row]) {
+                            ax += xs[c as usize] * w;
                         }
                         rhs_const[i] + self.gather(targets, i) - ax
                     },
