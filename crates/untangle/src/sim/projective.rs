@@ -127,6 +127,239 @@ pub fn project_unit_columns(f: &Matrix3x2<f64>, fallback: &Matrix3x2<f64>) -> Ma
     Matrix3x2::from_columns(&[col(0), col(1)])
 }
 
+/// `sum_s x[cols[s]] * values[s]` (one row of a scalar matrix applied to each coordinate),
+/// accumulated from zero in slot order; with AVX2 when the CPU has it (the lanes are the
+/// coordinates, each doing the scalar operations in the same order: the same bits).
+#[inline]
+pub fn row_times(cols: &[u32], values: &[f64], x: &[Vec3]) -> Vec3 {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked above).
+        return unsafe { row_times_avx2(cols, values, x) };
+    }
+    row_times_plain(cols, values, x)
+}
+
+#[inline]
+fn row_times_plain(cols: &[u32], values: &[f64], x: &[Vec3]) -> Vec3 {
+    let mut acc = Vec3::zeros();
+    for (&c, &w) in cols.iter().zip(values) {
+        acc += x[c as usize] * w;
+    }
+    acc
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn row_times_avx2(cols: &[u32], values: &[f64], x: &[Vec3]) -> Vec3 {
+    use std::arch::x86_64::*;
+    let mask = _mm256_set_epi64x(0, -1, -1, -1);
+    let mut acc = _mm256_setzero_pd();
+    for (&c, &w) in cols.iter().zip(values) {
+        let xc: &Vec3 = &x[c as usize];
+        // SAFETY: the mask loads the three coordinates of `xc` only (the fourth lane is 0).
+        let xv = unsafe { _mm256_maskload_pd(xc.as_ptr(), mask) };
+        acc = _mm256_add_pd(acc, _mm256_mul_pd(xv, _mm256_set1_pd(w)));
+    }
+    let mut out = [0.0f64; 4];
+    // SAFETY: `out` holds four doubles.
+    unsafe { _mm256_storeu_pd(out.as_mut_ptr(), acc) };
+    Vec3::new(out[0], out[1], out[2])
+}
+
+/// A triangle's weighted target `p` as its share of each corner's right-hand side,
+/// `p_u a[k] + p_v b[k]` (`S_t^T A_t^T p_t`, Bouaziz et al. Eq. 12).
+#[inline]
+pub fn corner_shares(p: &Matrix3x2<f64>, rest: &TriangleRest) -> [Vec3; 3] {
+    [0, 1, 2].map(|k| p.column(0) * rest.a[k] + p.column(1) * rest.b[k])
+}
+
+/// The local step of one triangle (corners `tri`, rest data `rest`, membrane weights
+/// `(arap, columns)` per unit area) at positions `x`: the corner shares ([`corner_shares`]) of
+/// `area (w_arap R + w_col U)`. The reference for the four-lane version in
+/// [`Projective::project`].
+pub fn project_triangle(
+    tri: &[u32; 3],
+    rest: &TriangleRest,
+    x: &[Vec3],
+    (wa, wc): (f64, f64),
+) -> [Vec3; 3] {
+    let mut wu = Vec3::zeros();
+    let mut wv = Vec3::zeros();
+    for k in 0..3 {
+        let p = x[tri[k] as usize];
+        wu += p * rest.a[k];
+        wv += p * rest.b[k];
+    }
+    let f = Matrix3x2::from_columns(&[wu, wv]);
+    let r = project_orthonormal(&f);
+    let area = rest.area;
+    let mut p = r * (wa * area);
+    if wc > 0.0 {
+        p += project_unit_columns(&f, &r) * (wc * area);
+    }
+    corner_shares(&p, rest)
+}
+
+/// The local step four triangles at a time: the operations of [`project_triangle`] in the same
+/// order per lane (no fused multiply-adds, IEEE division and square root), so the same bits; a
+/// lane whose gradient is (nearly) degenerate takes the scalar [`project_orthonormal`].
+mod lanes {
+    use super::{project_orthonormal, project_triangle, TriangleRest};
+    use crate::geom::Vec3;
+    use nalgebra::Matrix3x2;
+
+    const L: usize = 4;
+
+    /// [`project_triangle`] of every triangle of `tris` into `out`.
+    pub fn project(
+        tris: &[[u32; 3]],
+        rest: &[TriangleRest],
+        x: &[Vec3],
+        weights: (f64, f64),
+        out: &mut [[Vec3; 3]],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked above).
+            unsafe { project_avx2(tris, rest, x, weights, out) };
+            return;
+        }
+        project_plain(tris, rest, x, weights, out);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn project_avx2(
+        tris: &[[u32; 3]],
+        rest: &[TriangleRest],
+        x: &[Vec3],
+        weights: (f64, f64),
+        out: &mut [[Vec3; 3]],
+    ) {
+        project_plain(tris, rest, x, weights, out);
+    }
+
+    #[inline(always)]
+    fn project_plain(
+        tris: &[[u32; 3]],
+        rest: &[TriangleRest],
+        x: &[Vec3],
+        weights: (f64, f64),
+        out: &mut [[Vec3; 3]],
+    ) {
+        let mut ts = tris.chunks_exact(L);
+        let mut rs = rest.chunks_exact(L);
+        let mut os = out.chunks_exact_mut(L);
+        for ((t, r), o) in (&mut ts).zip(&mut rs).zip(&mut os) {
+            four(t, r, x, weights, o);
+        }
+        let rem = ts.remainder().iter().zip(rs.remainder());
+        for ((t, r), o) in rem.zip(os.into_remainder()) {
+            *o = project_triangle(t, r, x, weights);
+        }
+    }
+
+    #[inline(always)]
+    fn four(
+        tris: &[[u32; 3]],
+        rest: &[TriangleRest],
+        x: &[Vec3],
+        (wa, wc): (f64, f64),
+        out: &mut [[Vec3; 3]],
+    ) {
+        let (tris, rest, out) = (&tris[..L], &rest[..L], &mut out[..L]);
+        // The gradient's columns w_u, w_v per lane: f[0..3] = w_u, f[3..6] = w_v.
+        let mut f = [[0.0f64; L]; 6];
+        for l in 0..L {
+            let (t, r) = (&tris[l], &rest[l]);
+            let mut wu = Vec3::zeros();
+            let mut wv = Vec3::zeros();
+            for k in 0..3 {
+                let p = x[t[k] as usize];
+                wu += p * r.a[k];
+                wv += p * r.b[k];
+            }
+            for c in 0..3 {
+                f[c][l] = wu[c];
+                f[3 + c][l] = wv[c];
+            }
+        }
+        // project_orthonormal's regular case: f (f^T f)^-1/2 in closed form.
+        let mut ok = [true; L];
+        let mut rot = [[0.0f64; L]; 6];
+        for l in 0..L {
+            let (ux, uy, uz) = (f[0][l], f[1][l], f[2][l]);
+            let (vx, vy, vz) = (f[3][l], f[4][l], f[5][l]);
+            let p = ux * ux + uy * uy + uz * uz;
+            let q = ux * vx + uy * vy + uz * vz;
+            let r = vx * vx + vy * vy + vz * vz;
+            let tr = p + r;
+            let det = p * r - q * q;
+            ok[l] = (tr > 0.0) & (det > 1e-12 * tr * tr);
+            let sd = det.sqrt();
+            let s = 1.0 / (tr + 2.0 * sd).sqrt();
+            let (a, b, d) = ((p + sd) * s, q * s, (r + sd) * s);
+            let inv = 1.0 / (a * d - b * b);
+            let (ia, ib, id) = (d * inv, -b * inv, a * inv);
+            rot[0][l] = ux * ia + vx * ib;
+            rot[1][l] = uy * ia + vy * ib;
+            rot[2][l] = uz * ia + vz * ib;
+            rot[3][l] = ux * ib + vx * id;
+            rot[4][l] = uy * ib + vy * id;
+            rot[5][l] = uz * ib + vz * id;
+        }
+        for l in 0..L {
+            if !ok[l] {
+                let fl = Matrix3x2::new(f[0][l], f[3][l], f[1][l], f[4][l], f[2][l], f[5][l]);
+                let rl = project_orthonormal(&fl);
+                for c in 0..3 {
+                    rot[c][l] = rl[(c, 0)];
+                    rot[3 + c][l] = rl[(c, 1)];
+                }
+            }
+        }
+        // The weighted target area (w_arap R + w_col U), U the columns of f normalised.
+        let mut t = [[0.0f64; L]; 6];
+        for j in 0..6 {
+            for l in 0..L {
+                t[j][l] = rot[j][l] * (wa * rest[l].area);
+            }
+        }
+        if wc > 0.0 {
+            for col in 0..2 {
+                let mut len = [0.0f64; L];
+                for l in 0..L {
+                    let c = [f[3 * col][l], f[3 * col + 1][l], f[3 * col + 2][l]];
+                    len[l] = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+                }
+                for i in 0..3 {
+                    let j = 3 * col + i;
+                    for l in 0..L {
+                        let unit = if len[l] > 0.0 {
+                            f[j][l] / len[l]
+                        } else {
+                            rot[j][l]
+                        };
+                        t[j][l] += unit * (wc * rest[l].area);
+                    }
+                }
+            }
+        }
+        // Corner shares, as corner_shares.
+        for l in 0..L {
+            let r = &rest[l];
+            for k in 0..3 {
+                out[l][k] = Vec3::new(
+                    t[0][l] * r.a[k] + t[3][l] * r.b[k],
+                    t[1][l] * r.a[k] + t[4][l] * r.b[k],
+                    t[2][l] * r.a[k] + t[5][l] * r.b[k],
+                );
+            }
+        }
+    }
+}
+
 /// Elastic parameters of the projective system.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Elastic {
@@ -299,51 +532,52 @@ impl Projective {
     }
 
     /// The projections of the local step (Bouaziz et al. Sec. 4): per triangle the weighted
-    /// target `area (w_arap R + w_col U)` of its deformation gradient at `x` ([`project_orthonormal`],
-    /// [`project_unit_columns`]), into `targets` (resized). Parallel over chunks of triangles.
-    pub fn project(&self, x: &[Vec3], targets: &mut Vec<Matrix3x2<f64>>) {
-        let (wa, wc) = self.weights;
-        targets.resize(self.triangles.len(), Matrix3x2::zeros());
+    /// target `p = area (w_arap R + w_col U)` of its deformation gradient at `x`
+    /// ([`project_orthonormal`], [`project_unit_columns`]), stored as the triangle's share of
+    /// each corner's right-hand side, `p_u a[k] + p_v b[k]` ([`Projective::gather`] sums them),
+    /// into `targets` (resized). Parallel over chunks of triangles; within a chunk, four
+    /// triangles at a time with the same operations per lane as [`project_triangle`] (so the
+    /// same bits: test `lanes_match_the_scalar_projection`), in AVX2 registers when the CPU has
+    /// them.
+    pub fn project(&self, x: &[Vec3], targets: &mut Vec<[Vec3; 3]>) {
+        let weights = self.weights;
+        targets.resize(self.triangles.len(), [Vec3::zeros(); 3]);
         targets
             .par_chunks_mut(PROJECT_CHUNK)
             .enumerate()
             .for_each(|(c, ts)| {
-                for (k, p) in ts.iter_mut().enumerate() {
-                    let t = c * PROJECT_CHUNK + k;
-                    let f = self.gradient(t, x);
-                    let r = project_orthonormal(&f);
-                    let area = self.rest[t].area;
-                    *p = r * (wa * area);
-                    if wc > 0.0 {
-                        *p += project_unit_columns(&f, &r) * (wc * area);
-                    }
-                }
+                let first = c * PROJECT_CHUNK;
+                let end = first + ts.len();
+                let (tris, rest) = (&self.triangles[first..end], &self.rest[first..end]);
+                lanes::project(tris, rest, x, weights, ts);
             });
     }
 
     /// [`Projective::project`] that also returns the membrane energy at `x`,
     /// `sum_t area/2 (w_arap |F - R|^2 + w_col |F - U|^2)` (the distance to the constraint sets,
     /// summed in a fixed order), for the safeguard of the Anderson acceleration.
-    pub fn project_energy(&self, x: &[Vec3], targets: &mut Vec<Matrix3x2<f64>>) -> f64 {
+    pub fn project_energy(&self, x: &[Vec3], targets: &mut Vec<[Vec3; 3]>) -> f64 {
         let (wa, wc) = self.weights;
-        targets.resize(self.triangles.len(), Matrix3x2::zeros());
+        targets.resize(self.triangles.len(), [Vec3::zeros(); 3]);
         let energies: Vec<f64> = targets
             .par_chunks_mut(PROJECT_CHUNK)
             .enumerate()
             .map(|(c, ts)| {
                 let mut e = 0.0;
-                for (k, p) in ts.iter_mut().enumerate() {
+                for (k, out) in ts.iter_mut().enumerate() {
                     let t = c * PROJECT_CHUNK + k;
                     let f = self.gradient(t, x);
                     let r = project_orthonormal(&f);
-                    let area = self.rest[t].area;
-                    *p = r * (wa * area);
+                    let rest = &self.rest[t];
+                    let area = rest.area;
+                    let mut p = r * (wa * area);
                     let mut et = wa * (f - r).norm_squared();
                     if wc > 0.0 {
                         let u = project_unit_columns(&f, &r);
-                        *p += u * (wc * area);
+                        p += u * (wc * area);
                         et += wc * (f - u).norm_squared();
                     }
+                    *out = corner_shares(&p, rest);
                     e += 0.5 * area * et;
                 }
                 e
@@ -359,16 +593,13 @@ impl Projective {
     }
 
     /// Vertex `i`'s share `sum_t S_t^T A_t^T p_t` of the local step's right-hand side, from the
-    /// projections of [`Projective::project`] (incident triangles in a fixed order).
-    pub fn gather(&self, targets: &[Matrix3x2<f64>], i: usize) -> Vec3 {
+    /// per-corner shares of [`Projective::project`] (incident triangles in a fixed order).
+    pub fn gather(&self, targets: &[[Vec3; 3]], i: usize) -> Vec3 {
         let mut acc = Vec3::zeros();
         for &(t, corner) in
             &self.inc[self.inc_offsets[i] as usize..self.inc_offsets[i + 1] as usize]
         {
-            let (t, corner) = (t as usize, corner as usize);
-            let r = &self.rest[t];
-            let p = &targets[t];
-            acc += p.column(0) * r.a[corner] + p.column(1) * r.b[corner];
+            acc += targets[t as usize][corner as usize];
         }
         acc
     }
@@ -432,8 +663,9 @@ pub struct StepProblem<'a> {
 /// Reused buffers of the local/global iterations (no allocation per iteration).
 #[derive(Clone, Debug, Default)]
 pub struct Workspace {
-    /// The local step's weighted projections, per triangle.
-    pub targets: Vec<Matrix3x2<f64>>,
+    /// The local step's weighted projections, per triangle as its share of each corner's
+    /// right-hand side ([`Projective::project`]).
+    pub targets: Vec<[Vec3; 3]>,
     /// The eliminated constant right-hand side of a direct global step.
     rhs: Vec<Vec3>,
     /// A CG global step's `A x`, right-hand side `b`, prescribed increments and increment.
@@ -530,10 +762,8 @@ impl Projective {
                         if problem.filter[i] == Filter::Fixed {
                             return Vec3::zeros();
                         }
-                        let mut ax = Vec3::zeros();
-                        for s in p.offsets[i] as usize..p.offsets[i + 1] as usize {
-                            ax += xs[p.cols[s] as usize] * problem.values[s];
-                        }
+                        let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
+                        let ax = row_times(&p.cols[row.clone()], &problem.values[row], xs);
                         rhs_const[i] + self.gather(targets, i) - ax
                     },
                     dx,
@@ -686,6 +916,68 @@ mod tests {
     }
 
     proptest! {
+        /// The four-lane local step gives the bits of the scalar one ([`project_triangle`],
+        /// the per-triangle code it replaced) for every triangle, including degenerate
+        /// gradients (collapsed corners, collinear corners: the scalar fallback per lane) and
+        /// zero columns, with and without the column weight, at every chunk length.
+        #[test]
+        fn lanes_match_the_scalar_projection(seed in 0u64..10_000, count in 1usize..23,
+                                             wc in prop::sample::select(vec![0.0, 0.7])) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let mut x: Vec<Vec3> = (0..12)
+                .map(|_| Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0),
+                                   rng.random_range(-1.0..1.0)))
+                .collect();
+            x[1] = x[0];
+            x[2] = x[0] * 2.0 - x[3];
+            let tris: Vec<[u32; 3]> = (0..count)
+                .map(|_| [0, 1, 2].map(|_| rng.random_range(0..12u32)))
+                .collect();
+            let rest: Vec<TriangleRest> = (0..count)
+                .map(|_| {
+                    let mut c = || rng.random_range(-3.0..3.0);
+                    let (a, b) = ([c(), c(), c()], [c(), c(), c()]);
+                    let pick = rng.random_range(0..4);
+                    TriangleRest {
+                        a: if pick == 0 { [0.0; 3] } else { a },
+                        b: if pick == 1 { [0.0; 3] } else { b },
+                        area: rng.random_range(0.1..2.0),
+                    }
+                })
+                .collect();
+            let weights = (1.3, wc);
+            let mut got = vec![[Vec3::zeros(); 3]; count];
+            lanes::project(&tris, &rest, &x, weights, &mut got);
+            for t in 0..count {
+                let want = project_triangle(&tris[t], &rest[t], &x, weights);
+                for k in 0..3 {
+                    for c in 0..3 {
+                        prop_assert_eq!(got[t][k][c].to_bits(), want[k][c].to_bits(),
+                                        "triangle {} corner {}", t, k);
+                    }
+                }
+            }
+        }
+
+        /// The AVX2 row product gives the bits of the plain one (and of `Vec3` accumulation).
+        #[test]
+        fn row_times_matches_the_plain_sum(seed in 0u64..10_000, len in 0usize..30) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let x: Vec<Vec3> = (0..20)
+                .map(|_| Vec3::new(rng.random_range(-1e3..1e3), rng.random_range(-1.0..1.0),
+                                   rng.random_range(-1e-3..1e-3)))
+                .collect();
+            let cols: Vec<u32> = (0..len).map(|_| rng.random_range(0..20u32)).collect();
+            let values: Vec<f64> = (0..len).map(|_| rng.random_range(-1e4..1e4)).collect();
+            let got = row_times(&cols, &values, &x);
+            let want = row_times_plain(&cols, &values, &x);
+            for c in 0..3 {
+                prop_assert_eq!(got[c].to_bits(), want[c].to_bits());
+            }
+        }
+
         /// The projection equals `U V^T` of nalgebra's SVD, has orthonormal columns, is
         /// idempotent, and no sampled orthonormal 3x2 matrix is closer.
         #[test]

@@ -203,15 +203,19 @@ pub fn screen_pair(
     // Two edges side by side on one sheet (opposite sides of a quad, the bulk of the edge pairs
     // that get this far) are separated along the centre vector's component orthogonal to either
     // edge much better than along the centre vector itself when the quad is skewed. These axes
-    // only decide dormant or far (what the closest points would also decide); the start gap
-    // handed to the CCD stays the one above, so its results do not change.
+    // decide dormant or far (what the closest points would also decide), and settle the first
+    // CCD pass's test when they exceed its thickness plus the relative motion (a valid lower
+    // distance bound, like the start gap: conservative advancement would find nothing either,
+    // test `screened_collisions_are_those_of_a_full_ccd_pass`); the start gap handed to the CCD
+    // stays the one above.
     if !vt {
         let extra = in_plane_gap(x);
+        let settled = ccd_settled || super::gap_exceeds(extra, scale, ccd_at);
         if super::gap_exceeds(extra, scale, dormant_at) {
-            return (Verdict::Dormant, start, ccd_settled);
+            return (Verdict::Dormant, start, settled);
         }
         if super::gap_exceeds(extra, scale, far) {
-            return (Verdict::Far, start, ccd_settled);
+            return (Verdict::Far, start, settled);
         }
     }
     let geom = closest(x, vt);
