@@ -15,6 +15,8 @@
 //! at the contact vertices;
 //! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ;
 //! `LAYERS_BENCH_SETTLE=n` sets the repair's settle rounds (0: off);
+//! `LAYERS_BENCH_STREAK=n[,max]` sets the pair phase's acceleration of persistent crossings
+//! (`RepairParams::pair_streak`, `pair_streak_max`; `0` restores fixed steps);
 //! `LAYERS_BENCH_NO_SELF_SEPARATION=1` turns off the repair's separation of self-intersections,
 //! `LAYERS_BENCH_SELF_SMOOTHING=x` sets its smoothing;
 //! `LAYERS_BENCH_PLAIN_OFFSETS=1` uses eq. 13's thickness offsets as written (no gradient
@@ -118,6 +120,16 @@ fn main() {
                 }
                 if let Some(&r) = v.get(3) {
                     params.repair.pair_rounds = r as usize;
+                }
+            }
+            if let Ok(x) = std::env::var("LAYERS_BENCH_STREAK") {
+                // n[,max]: the pair phase's step acceleration of persistent crossings (0: off).
+                let v: Vec<f64> = x.split(',').filter_map(|s| s.parse().ok()).collect();
+                if let Some(&n) = v.first() {
+                    params.repair.pair_streak = n as usize;
+                }
+                if let Some(&m) = v.get(1) {
+                    params.repair.pair_streak_max = m;
                 }
             }
             if let Some(x) = std::env::var("LAYERS_BENCH_SETTLE")

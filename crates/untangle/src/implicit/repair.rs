@@ -22,6 +22,10 @@
 //! finds no crossing between objects (see `separate_pairs`). A triangle that has once crossed
 //! a layer further in only moves out from then on, so a stack squeezed against the body
 //! expands instead of passing a layer back and forth between its neighbours.
+//! A pair whose triangles have been crossing for several consecutive rounds moves by a growing
+//! multiple of the step (`RepairParams::pair_streak`): where the projection stretched a
+//! triangle of one layer into a spike of several centimetres through the next ones, those
+//! climb it in a few rounds instead of a step at a time.
 //!
 //! The projection and the pushes also make garments intersect themselves (a garment squeezed
 //! between two layers has more cloth than room: it crumples; Sec. 7 of the paper leaves this
@@ -65,6 +69,16 @@ pub struct RepairParams {
     pub pair_rounds: usize,
     /// Most rounds of the symmetric phase in all.
     pub pair_rounds_max: usize,
+    /// Acceleration of persistent crossings in the symmetric phase: a pair one of whose
+    /// triangles has been in a crossing pair for `n` consecutive rounds moves `1 + n /
+    /// pair_streak` times the step (integer division, at most `pair_streak_max` times), so a
+    /// layer that has to climb a long spike of another (a triangle the projection stretched
+    /// over centimetres) gets there in fewer rounds (0: fixed steps; at the Table-2 size the
+    /// default takes 55 rounds, fixed steps 138). The separation of self-intersections keeps
+    /// fixed steps.
+    pub pair_streak: usize,
+    /// Largest step factor of `pair_streak`.
+    pub pair_streak_max: f64,
     /// Undo the symmetric phase's moves that make a garment intersect itself anew (see
     /// [`super::self_guard`]); the phase may then leave crossings between layers.
     pub prevent_self_intersections: bool,
@@ -96,6 +110,8 @@ impl Default for RepairParams {
             bump: 4.0,
             pair_rounds: 200,
             pair_rounds_max: 3000,
+            pair_streak: 4,
+            pair_streak_max: 4.0,
             prevent_self_intersections: false,
             separate_self_intersections: true,
             self_rounds: 30,
@@ -1010,6 +1026,10 @@ fn separate_pairs(
             }
         })
         .collect();
+    // Per triangle: consecutive rounds in a crossing pair (see `RepairParams::pair_streak`).
+    let mut streak = vec![0u32; tris.len()];
+    let mut in_streak = vec![false; tris.len()];
+    let mut streak_list: Vec<u32> = Vec::new();
     for round in 0..most {
         if pairs.is_empty() {
             break;
@@ -1063,6 +1083,29 @@ fn separate_pairs(
         for &(_, hi) in &ordered {
             pressed[hi] = true;
         }
+        // Consecutive rounds every triangle has been in a crossing pair (the list of this
+        // round's, sorted; the others are reset to 0).
+        let mut in_pairs: Vec<u32> = Vec::with_capacity(2 * ordered.len());
+        for &(lo, hi) in &ordered {
+            in_pairs.extend([lo as u32, hi as u32]);
+        }
+        in_pairs.sort_unstable();
+        in_pairs.dedup();
+        for &t in &streak_list {
+            in_streak[t as usize] = false;
+        }
+        for &t in &in_pairs {
+            in_streak[t as usize] = true;
+        }
+        for &t in &streak_list {
+            if !in_streak[t as usize] {
+                streak[t as usize] = 0;
+            }
+        }
+        for &t in &in_pairs {
+            streak[t as usize] += 1;
+        }
+        streak_list = in_pairs;
         // Per pair: inner triangle, outer triangle, direction, shares.
         let moves: Vec<(usize, usize, Vec3, f64, f64)> = ordered
             .par_iter()
@@ -1100,7 +1143,13 @@ fn separate_pairs(
             .collect();
         let mut seeds_all: Vec<usize> = Vec::new();
         for &(lo, hi, n, sl, sh) in &moves {
-            let len = |t: usize| step_of[object_of[t] as usize];
+            let factor = if own_pairs || params.pair_streak == 0 {
+                1.0
+            } else {
+                let s = streak[lo].max(streak[hi]) as usize;
+                (1.0 + (s / params.pair_streak) as f64).min(params.pair_streak_max.max(1.0))
+            };
+            let len = |t: usize| step_of[object_of[t] as usize] * factor;
             let own = object_of[lo] == object_of[hi];
             for (t, d) in [(hi, n * (sh * len(hi))), (lo, -n * (sl * len(lo)))] {
                 for &v in &tris[t] {
@@ -1438,6 +1487,52 @@ mod tests {
             .map(|(k, &r)| dented(&format!("g{k}"), r, &axis, 0.45, 0.03 + 0.012 * k as f64))
             .collect();
         run(Some(&body), &gs, &radii, &[1.0; 6]);
+    }
+
+    /// A body with a spike (one vertex pulled 6 cm out, its triangles stretched over it, as the
+    /// projection sometimes leaves a garment) through a garment 1 cm above it: the garment,
+    /// which alone moves, climbs the spike by steps. Oracle: the intersection analysis finds
+    /// the output clean with fixed steps and with the acceleration of persistent crossings,
+    /// which needs fewer rounds.
+    #[test]
+    fn a_garment_climbs_a_long_spike_faster_with_growing_steps() {
+        let mut body = sphere_mesh("body", &Vec3::zeros(), 0.5, 20);
+        // A vertex on the equator (vertex 0, the pole, gives the body field's radius).
+        let spike = 1 + 9 * 40 + 7;
+        body.positions[spike] *= 0.56 / 0.5;
+        let g = sphere_mesh("g", &Vec3::zeros(), 0.51, 20);
+        let refs = [&g];
+        let before = vec![g.positions.clone()];
+        let v0 = verify(Some(&body), &refs, &before).unwrap();
+        assert!(v0.with_body > 0, "starts tangled: {v0:?}");
+        let fields = SphereField::concentric(&[0.51]);
+        let body_field = SphereField {
+            centre: Vec3::zeros(),
+            radius: 0.5,
+        };
+        let topos = vec![Topology::new(&g).unwrap()];
+        let layers = sphere_layers(std::slice::from_ref(&g), &topos, &fields, &[1.0]);
+        let rounds = |streak: usize| {
+            let params = RepairParams {
+                pair_streak: streak,
+                // The symmetric phase alone does the climbing.
+                steps: 1,
+                ..RepairParams::default()
+            };
+            let mut pos = before.clone();
+            let b = Some((&body, &body_field as &dyn LayerField));
+            let (_, rep) = repair(b, &layers, &mut pos, &params);
+            let v = verify(Some(&body), &refs, &pos).unwrap();
+            assert!(v.is_clean(), "streak {streak}: {v:?} {rep:?}");
+            assert_eq!(rep.remaining, 0);
+            rep.rounds
+        };
+        let (fixed, growing) = (rounds(0), rounds(4));
+        assert!(fixed > 8, "the spike takes many fixed steps: {fixed}");
+        assert!(
+            growing < fixed,
+            "{growing} rounds with growing steps, {fixed} without"
+        );
     }
 
     /// [`repair`] with and without [`settle`] on the same input.
