@@ -29,7 +29,8 @@ pub enum Method {
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Garment mesh(es) (OBJ with `vt` sewing-pattern coordinates; without `vt` the mesh is its
-    /// own flat pattern).
+    /// own flat pattern: projected onto its best-fitting plane, or unfolded with its own edge
+    /// lengths where the projection would squash or flip a triangle).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
     /// Write the untangled garment here (OBJ; original uv).

@@ -14,6 +14,10 @@ pub enum UvSource {
     /// No `vt` in the input: the mesh was projected onto its best-fitting plane (one panel
     /// parameterised by its own shape).
     PlanarProjection,
+    /// No `vt` in the input, and the projection degenerated or inverted a triangle (a sheet
+    /// folded onto itself): the mesh was unfolded triangle by triangle with its own edge lengths
+    /// ([`unfolded_uv`]).
+    Unfolded,
 }
 
 /// A validated garment: world mesh, topology, uv layer, panels and seams.
@@ -43,8 +47,20 @@ impl Garment {
         let uv_source = if mesh.uv.is_some() {
             UvSource::File
         } else {
-            mesh.uv = Some(planar_uv(&mesh.positions, &mesh.triangles));
-            UvSource::PlanarProjection
+            let planar = planar_uv(&mesh.positions, &mesh.triangles);
+            let unfolded = (!faithful(&planar, &mesh.positions))
+                .then(|| unfolded_uv(&mesh.positions, &mesh.triangles, &topology))
+                .filter(|u| faithful(u, &mesh.positions));
+            match unfolded {
+                Some(u) => {
+                    mesh.uv = Some(u);
+                    UvSource::Unfolded
+                }
+                None => {
+                    mesh.uv = Some(planar);
+                    UvSource::PlanarProjection
+                }
+            }
         };
         let uv = mesh.uv.as_ref().expect("set above");
         let (panel_of_uv, num_panels) = components(uv);
@@ -170,6 +186,99 @@ pub fn planar_uv(positions: &[Vec3], triangles: &[[u32; 3]]) -> UvLayer {
     }
 }
 
+/// Whether every uv triangle of a derived layer (one uv per world vertex) is counter-clockwise
+/// with at least 1 % of its world area: a usable rest shape.
+fn faithful(uv: &UvLayer, positions: &[Vec3]) -> bool {
+    uv.triangles.iter().all(|t| {
+        let [a, b, c] = t.map(|v| v as usize);
+        let world = (positions[b] - positions[a])
+            .cross(&(positions[c] - positions[a]))
+            .norm();
+        crate::geom::cross2(&uv.coords[a], &uv.coords[b], &uv.coords[c]) >= 0.01 * world
+    })
+}
+
+/// Unfolds the mesh into the plane triangle by triangle (breadth-first over shared edges, from
+/// the first triangle of each connected piece), placing each new vertex with the triangle's own
+/// edge length and corner angle, counter-clockwise. Exact (an isometry) where the mesh is
+/// developable without closing a loop around an interior vertex, e.g. a strip or a sheet folded
+/// onto itself; a vertex reached again keeps its first place. One uv per world vertex.
+pub fn unfolded_uv(positions: &[Vec3], triangles: &[[u32; 3]], topo: &Topology) -> UvLayer {
+    const UNSET: Vec2 = Vec2::new(f64::NAN, f64::NAN);
+    let mut coords = vec![UNSET; positions.len()];
+    let mut done = vec![false; triangles.len()];
+    let placed = |coords: &[Vec2], v: u32| !coords[v as usize].x.is_nan();
+    // Third corner of (a, b, c), counter-clockwise, from the world triangle's shape.
+    let third = |coords: &[Vec2], a: u32, b: u32, c: u32| -> Vec2 {
+        let (pa, pb, pc) = (
+            positions[a as usize],
+            positions[b as usize],
+            positions[c as usize],
+        );
+        let (ab, ac) = (pb - pa, pc - pa);
+        let angle = ab.cross(&ac).norm().atan2(ab.dot(&ac));
+        let (ua, ub) = (coords[a as usize], coords[b as usize]);
+        let d = ub - ua;
+        let u = if d.norm() > 0.0 {
+            d / d.norm()
+        } else {
+            Vec2::new(1.0, 0.0)
+        };
+        let perp = Vec2::new(-u.y, u.x);
+        ua + (u * angle.cos() + perp * angle.sin()) * ac.norm()
+    };
+    let mut origin = 0.0;
+    for seed in 0..triangles.len() {
+        if done[seed] {
+            continue;
+        }
+        let [a, b, c] = triangles[seed];
+        // A new piece starts to the right of the previous ones (pieces are separate panels).
+        for v in [a, b] {
+            if !placed(&coords, v) {
+                coords[v as usize] = Vec2::new(origin, 0.0);
+                origin += (positions[b as usize] - positions[a as usize]).norm();
+            }
+        }
+        if !placed(&coords, c) {
+            coords[c as usize] = third(&coords, a, b, c);
+        }
+        done[seed] = true;
+        let mut queue = std::collections::VecDeque::from([seed]);
+        while let Some(t) = queue.pop_front() {
+            for &e in &topo.triangle_edges[t] {
+                for &n in &topo.edge_triangles[e as usize] {
+                    if n == crate::mesh::topology::NONE || done[n as usize] {
+                        continue;
+                    }
+                    done[n as usize] = true;
+                    let tri = triangles[n as usize];
+                    for k in 0..3 {
+                        let (p, q, r) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+                        if placed(&coords, p) && placed(&coords, q) && !placed(&coords, r) {
+                            coords[r as usize] = third(&coords, p, q, r);
+                        }
+                    }
+                    queue.push_back(n as usize);
+                }
+            }
+        }
+        origin = coords
+            .iter()
+            .filter(|p| !p.x.is_nan())
+            .map(|p| p.x)
+            .fold(origin, f64::max)
+            + 1.0;
+    }
+    for p in coords.iter_mut().filter(|p| p.x.is_nan()) {
+        *p = Vec2::zeros(); // an isolated vertex (no triangle)
+    }
+    UvLayer {
+        coords,
+        triangles: triangles.to_vec(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -190,6 +299,43 @@ mod tests {
         // Seams are interior in the world mesh.
         let e = g.topology.edge_between(1, 2).unwrap();
         assert!(!g.topology.is_boundary_edge(e));
+    }
+
+    #[test]
+    fn a_folded_sheet_without_uv_is_unfolded_isometrically() {
+        // A strip of four squares folded in a Z (the first and last square fold back over the
+        // middle ones, like the third-party BIBI unit): its best-fitting plane squashes some
+        // triangles to slivers, the unfolding keeps every world edge length.
+        let mut text = String::new();
+        let xs = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.2, 1.0), (0.2, 0.0)];
+        for (x, z) in xs {
+            text += &format!("v {x} 0 {z}\nv {x} 1 {z}\n");
+        }
+        for i in 0..4 {
+            let (a, b, c, d) = (2 * i + 1, 2 * i + 3, 2 * i + 4, 2 * i + 2);
+            text += &format!("f {a} {b} {c}\nf {a} {c} {d}\n");
+        }
+        let m = parse_obj(&text, "z.obj", "z").unwrap();
+        assert!(!faithful(
+            &planar_uv(&m.positions, &m.triangles),
+            &m.positions
+        ));
+        let g = Garment::new(m).unwrap();
+        assert_eq!(g.uv_source, UvSource::Unfolded);
+        assert_eq!(g.num_panels, 1);
+        let uv = g.uv();
+        for t in &g.mesh.triangles {
+            for k in 0..3 {
+                let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+                let world = (g.mesh.positions[a] - g.mesh.positions[b]).norm();
+                let flat = (uv.coords[a] - uv.coords[b]).norm();
+                assert!(
+                    (world - flat).abs() < 1e-12,
+                    "edge {a}-{b}: {world} vs {flat}"
+                );
+            }
+        }
+        assert!(faithful(uv, &g.mesh.positions));
     }
 
     #[test]
