@@ -111,8 +111,10 @@ fn untangling26_units_resolve_except_cross() {
     for (file, _, _) in UNITS {
         let m = read_obj(&shared.join("data/untangling26-units").join(file)).unwrap();
         let g = Garment::new(m).unwrap();
-        let mut p = ResolveParams::default();
-        p.max_steps = 400;
+        let p = ResolveParams {
+            max_steps: 400,
+            ..Default::default()
+        };
         let mut r = Resolver::new(&g, p).unwrap();
         let s = r.run(|_| {}).unwrap();
         if file == "unit_Cross.obj" {
