@@ -167,6 +167,39 @@ unsafe fn row_times_avx2(cols: &[u32], values: &[f64], x: &[Vec3]) -> Vec3 {
     Vec3::new(out[0], out[1], out[2])
 }
 
+/// The deformation gradient `[w_u w_v]` (Baraff & Witkin 1998, Sec. 4.2) of triangle `tri`
+/// with rest data `rest` at positions `x`, corners accumulated in order.
+#[inline]
+pub fn triangle_gradient(tri: &[u32; 3], rest: &TriangleRest, x: &[Vec3]) -> Matrix3x2<f64> {
+    let mut wu = Vec3::zeros();
+    let mut wv = Vec3::zeros();
+    for k in 0..3 {
+        let p = x[tri[k] as usize];
+        wu += p * rest.a[k];
+        wv += p * rest.b[k];
+    }
+    Matrix3x2::from_columns(&[wu, wv])
+}
+
+/// The weighted target `p = area (w_arap R + w_col U)` of a triangle with gradient `f`, its
+/// projection `r` ([`project_orthonormal`]) and rest `area`, with `U` ([`project_unit_columns`])
+/// when the column weight is positive (Bouaziz et al. 2014, Sec. 4: the local step).
+#[inline]
+fn weighted_target(
+    f: &Matrix3x2<f64>,
+    r: &Matrix3x2<f64>,
+    area: f64,
+    (wa, wc): (f64, f64),
+) -> (Matrix3x2<f64>, Option<Matrix3x2<f64>>) {
+    let mut p = r * (wa * area);
+    if wc > 0.0 {
+        let u = project_unit_columns(f, r);
+        p += u * (wc * area);
+        return (p, Some(u));
+    }
+    (p, None)
+}
+
 /// A triangle's weighted target `p` as its share of each corner's right-hand side,
 /// `p_u a[k] + p_v b[k]` (`S_t^T A_t^T p_t`, Bouaziz et al. Eq. 12).
 #[inline]
@@ -182,22 +215,11 @@ pub fn project_triangle(
     tri: &[u32; 3],
     rest: &TriangleRest,
     x: &[Vec3],
-    (wa, wc): (f64, f64),
+    weights: (f64, f64),
 ) -> [Vec3; 3] {
-    let mut wu = Vec3::zeros();
-    let mut wv = Vec3::zeros();
-    for k in 0..3 {
-        let p = x[tri[k] as usize];
-        wu += p * rest.a[k];
-        wv += p * rest.b[k];
-    }
-    let f = Matrix3x2::from_columns(&[wu, wv]);
+    let f = triangle_gradient(tri, rest, x);
     let r = project_orthonormal(&f);
-    let area = rest.area;
-    let mut p = r * (wa * area);
-    if wc > 0.0 {
-        p += project_unit_columns(&f, &r) * (wc * area);
-    }
+    let (p, _) = weighted_target(&f, &r, rest.area, weights);
     corner_shares(&p, rest)
 }
 
@@ -205,7 +227,7 @@ pub fn project_triangle(
 /// order per lane (no fused multiply-adds, IEEE division and square root), so the same bits; a
 /// lane whose gradient is (nearly) degenerate takes the scalar [`project_orthonormal`].
 mod lanes {
-    use super::{project_orthonormal, project_triangle, TriangleRest};
+    use super::{project_orthonormal, project_triangle, triangle_gradient, TriangleRest};
     use crate::geom::Vec3;
     use nalgebra::Matrix3x2;
 
@@ -272,17 +294,10 @@ mod lanes {
         // The gradient's columns w_u, w_v per lane: f[0..3] = w_u, f[3..6] = w_v.
         let mut f = [[0.0f64; L]; 6];
         for l in 0..L {
-            let (t, r) = (&tris[l], &rest[l]);
-            let mut wu = Vec3::zeros();
-            let mut wv = Vec3::zeros();
-            for k in 0..3 {
-                let p = x[t[k] as usize];
-                wu += p * r.a[k];
-                wv += p * r.b[k];
-            }
+            let g = triangle_gradient(&tris[l], &rest[l], x);
             for c in 0..3 {
-                f[c][l] = wu[c];
-                f[3 + c][l] = wv[c];
+                f[c][l] = g[(c, 0)];
+                f[3 + c][l] = g[(c, 1)];
             }
         }
         // project_orthonormal's regular case: f (f^T f)^-1/2 in closed form.
@@ -520,15 +535,7 @@ impl Projective {
     }
 
     fn gradient(&self, t: usize, x: &[Vec3]) -> Matrix3x2<f64> {
-        let (tri, r) = (&self.triangles[t], &self.rest[t]);
-        let mut wu = Vec3::zeros();
-        let mut wv = Vec3::zeros();
-        for k in 0..3 {
-            let p = x[tri[k] as usize];
-            wu += p * r.a[k];
-            wv += p * r.b[k];
-        }
-        Matrix3x2::from_columns(&[wu, wv])
+        triangle_gradient(&self.triangles[t], &self.rest[t], x)
     }
 
     /// The projections of the local step (Bouaziz et al. Sec. 4): per triangle the weighted
@@ -570,11 +577,9 @@ impl Projective {
                     let r = project_orthonormal(&f);
                     let rest = &self.rest[t];
                     let area = rest.area;
-                    let mut p = r * (wa * area);
+                    let (p, u) = weighted_target(&f, &r, area, (wa, wc));
                     let mut et = wa * (f - r).norm_squared();
-                    if wc > 0.0 {
-                        let u = project_unit_columns(&f, &r);
-                        p += u * (wc * area);
+                    if let Some(u) = u {
                         et += wc * (f - u).norm_squared();
                     }
                     *out = corner_shares(&p, rest);
