@@ -1026,10 +1026,10 @@ fn separate_pairs(
             }
         })
         .collect();
-    // Per triangle: consecutive rounds in a crossing pair (see `RepairParams::pair_streak`).
+    // Per triangle: consecutive rounds in a crossing pair up to its last one (see
+    // `RepairParams::pair_streak`), and that last round.
     let mut streak = vec![0u32; tris.len()];
-    let mut in_streak = vec![false; tris.len()];
-    let mut streak_list: Vec<u32> = Vec::new();
+    let mut streak_round = vec![usize::MAX; tris.len()];
     for round in 0..most {
         if pairs.is_empty() {
             break;
@@ -1083,29 +1083,17 @@ fn separate_pairs(
         for &(_, hi) in &ordered {
             pressed[hi] = true;
         }
-        // Consecutive rounds every triangle has been in a crossing pair (the list of this
-        // round's, sorted; the others are reset to 0).
-        let mut in_pairs: Vec<u32> = Vec::with_capacity(2 * ordered.len());
+        // Consecutive rounds each triangle of this round's pairs has been in a crossing pair
+        // (a streak that missed the previous round starts again at 1).
         for &(lo, hi) in &ordered {
-            in_pairs.extend([lo as u32, hi as u32]);
-        }
-        in_pairs.sort_unstable();
-        in_pairs.dedup();
-        for &t in &streak_list {
-            in_streak[t as usize] = false;
-        }
-        for &t in &in_pairs {
-            in_streak[t as usize] = true;
-        }
-        for &t in &streak_list {
-            if !in_streak[t as usize] {
-                streak[t as usize] = 0;
+            for t in [lo, hi] {
+                if streak_round[t] != round {
+                    let went_on = round > 0 && streak_round[t] == round - 1;
+                    streak[t] = if went_on { streak[t] + 1 } else { 1 };
+                    streak_round[t] = round;
+                }
             }
         }
-        for &t in &in_pairs {
-            streak[t as usize] += 1;
-        }
-        streak_list = in_pairs;
         // Per pair: inner triangle, outer triangle, direction, shares.
         let moves: Vec<(usize, usize, Vec3, f64, f64)> = ordered
             .par_iter()
