@@ -204,10 +204,15 @@ fn faithful(uv: &UvLayer, positions: &[Vec3]) -> bool {
 /// developable without closing a loop around an interior vertex, e.g. a strip or a sheet folded
 /// onto itself; a vertex reached again keeps its first place. One uv per world vertex.
 pub fn unfolded_uv(positions: &[Vec3], triangles: &[[u32; 3]], topo: &Topology) -> UvLayer {
-    const UNSET: Vec2 = Vec2::new(f64::NAN, f64::NAN);
-    let mut coords = vec![UNSET; positions.len()];
+    let mut coords = vec![Vec2::new(f64::NAN, f64::NAN); positions.len()];
     let mut done = vec![false; triangles.len()];
+    // Largest x placed so far: a new piece starts right of it (pieces are separate panels).
+    let mut right = f64::NEG_INFINITY;
     let placed = |coords: &[Vec2], v: u32| !coords[v as usize].x.is_nan();
+    fn place(coords: &mut [Vec2], right: &mut f64, v: u32, p: Vec2) {
+        *right = right.max(p.x);
+        coords[v as usize] = p;
+    }
     // Third corner of (a, b, c), counter-clockwise, from the world triangle's shape.
     let third = |coords: &[Vec2], a: u32, b: u32, c: u32| -> Vec2 {
         let (pa, pb, pc) = (
@@ -233,15 +238,16 @@ pub fn unfolded_uv(positions: &[Vec3], triangles: &[[u32; 3]], topo: &Topology) 
             continue;
         }
         let [a, b, c] = triangles[seed];
-        // A new piece starts to the right of the previous ones (pieces are separate panels).
+        // The seed's first edge along +x: each unplaced end takes the next slot.
         for v in [a, b] {
             if !placed(&coords, v) {
-                coords[v as usize] = Vec2::new(origin, 0.0);
+                place(&mut coords, &mut right, v, Vec2::new(origin, 0.0));
                 origin += (positions[b as usize] - positions[a as usize]).norm();
             }
         }
         if !placed(&coords, c) {
-            coords[c as usize] = third(&coords, a, b, c);
+            let p = third(&coords, a, b, c);
+            place(&mut coords, &mut right, c, p);
         }
         done[seed] = true;
         let mut queue = std::collections::VecDeque::from([seed]);
@@ -256,19 +262,15 @@ pub fn unfolded_uv(positions: &[Vec3], triangles: &[[u32; 3]], topo: &Topology) 
                     for k in 0..3 {
                         let (p, q, r) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
                         if placed(&coords, p) && placed(&coords, q) && !placed(&coords, r) {
-                            coords[r as usize] = third(&coords, p, q, r);
+                            let at = third(&coords, p, q, r);
+                            place(&mut coords, &mut right, r, at);
                         }
                     }
                     queue.push_back(n as usize);
                 }
             }
         }
-        origin = coords
-            .iter()
-            .filter(|p| !p.x.is_nan())
-            .map(|p| p.x)
-            .fold(origin, f64::max)
-            + 1.0;
+        origin = right.max(origin) + 1.0;
     }
     for p in coords.iter_mut().filter(|p| p.x.is_nan()) {
         *p = Vec2::zeros(); // an isolated vertex (no triangle)
