@@ -136,7 +136,7 @@ impl<'a> RegionFinder<'a> {
         let stride = n.div_ceil(MAX_SEEDS).max(1);
         for k in (0..n).step_by(stride) {
             let st = self.stamp_cut(path);
-            let [a, b] = self.mesh.topology.edges[path.cut_edges[k] as usize];
+            let [a, b] = topo.edges[path.cut_edges[k] as usize];
             if self.removed(a, st) || self.removed(b, st) {
                 continue;
             }

@@ -231,7 +231,7 @@ impl ChaKo {
         self.loop_vertices = lv;
         if let Some(cut) = cut_edges {
             let ne = self.mesh.garment.topology.num_edges();
-            self.cut_edge = vec![false; ne];
+            self.cut_edge.resize(ne, false); // empty between updates: all false, capacity kept
             for &e in cut {
                 if (e as usize) < ne {
                     self.cut_edge[e as usize] = true;

@@ -70,7 +70,9 @@
 //!   It matters for the BLI cone regions of Wicke's heuristic, which are cut off by a geodesic
 //!   disc as well: their rim vertices have green neighbours that no path separates. In the LL
 //!   case such a rim vertex was pulled, saturated, abandoned and pulled again for 250 steps
-//!   after the LL path had turned into a BLI; with the rule LL resolves (73 steps).
+//!   after the LL path had turned into a BLI; with the rule LL resolves (73 steps; 48 since
+//!   such a BLI, its loop vertex on the boundary, gets a partition region instead of a cone:
+//!   [`crate::analysis::regions::RegionFinder::bli_boundary_partition`]).
 //! - Sec. 6.1 (no TIT-passable fan): a candidate whose every proposal fails the test yields its
 //!   turn (lines 4 and 8). After both loops, such candidates whose subjects and fans are still
 //!   untouched get a fallback operation ([`super::fallback`]), so a regular operation always has
