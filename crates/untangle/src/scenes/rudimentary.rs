@@ -117,9 +117,7 @@ pub fn loop_loop(levels: usize) -> Scene {
 
 /// BLI: the crossing fan with only the first dipping triangle.
 pub fn bli(levels: usize) -> Scene {
-    let uv = half_disc(5);
-    let tris = [[0u32, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]];
-    let m = core("bli", &uv, &CROSS_WORLD[..6], &tris, levels);
+    let m = core("bli", &half_disc(5), &CROSS_WORLD[..6], &BLI_FAN, levels);
     Scene {
         name: "bli".into(),
         meshes: vec![m],
@@ -127,30 +125,20 @@ pub fn bli(levels: usize) -> Scene {
     }
 }
 
-/// BLI with an interior loop vertex: the fan of [`bli`] closed into a full disc by two more
-/// triangles on the far side of its diameter (core vertex 6, away from both wedges). The same
-/// tanglement, but no half of the path separates anything: the inside region comes from Wicke's
-/// cone heuristic.
+/// The fan of [`bli`]: four triangles around core vertex 0.
+const BLI_FAN: [[u32; 3]; 4] = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]];
+
+/// BLI with an interior loop vertex: the fan of [`bli`] (same layout and world positions)
+/// closed into a full disc by two more triangles on the far side of its diameter (core vertex
+/// 6, away from both wedges). The same tanglement, but no half of the path separates anything:
+/// the inside region comes from Wicke's cone heuristic.
 pub fn bli_interior(levels: usize) -> Scene {
-    let uv = [
-        [0.0, 0.0],
-        [1.0, 0.0],
-        [0.5, 0.866],
-        [-0.5, 0.866],
-        [-0.866, 0.5],
-        [-1.0, 0.0],
-        [0.0, -1.0],
-    ];
+    let mut uv = half_disc(5);
+    uv.push([0.0, -1.0]);
     let mut world = CROSS_WORLD[..6].to_vec();
     world.push([0.6, -0.8, -0.2]);
-    let tris = [
-        [0u32, 1, 2],
-        [0, 2, 3],
-        [0, 3, 4],
-        [0, 4, 5],
-        [0, 5, 6],
-        [0, 6, 1],
-    ];
+    let mut tris = BLI_FAN.to_vec();
+    tris.extend([[0, 5, 6], [0, 6, 1]]);
     let m = core("bli_interior", &uv, &world, &tris, levels);
     Scene {
         name: "bli-interior".into(),
