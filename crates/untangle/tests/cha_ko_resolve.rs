@@ -79,7 +79,7 @@ fn bli_case_resolves_beyond_the_paper() {
 
 #[test]
 fn unresolved_cases_stop_and_say_where() {
-    // BLI without cone regions (the paper's method alone) and CROSS: operations saturate, are
+    // BLI without BLI regions (the paper's method alone) and CROSS: operations saturate, are
     // abandoned and retried, and the loop stops as stuck with every saturation reported by
     // vertex and position.
     for (name, bli_regions) in [("bli", false), ("cross", true)] {

@@ -45,8 +45,8 @@ pub const NAMES: &[&str] = &[
 /// Builds a scene by name; `size` is the handkerchief resolution (cells per side, `None` for the
 /// default) and `seed` drives random scenes.
 ///
-/// For the loop-vertex cores (`ll`, `eight`, `cross`, `bli`, `bli-interior`) `size` is the number of subdivision
-/// levels (default 2); for `folded` it is the cells per side (default 125: 31,250 triangles, 4
+/// For the loop-vertex cores (`ll`, `eight`, `cross`, `bli`, `bli-interior`) `size` is the
+/// number of subdivision levels (default 2); for `folded` it is the cells per side (default 125: 31,250 triangles, 4
 /// dents); for `exploded` the cells per side (default 14) and `seed` the random draw; for `skirt`
 /// the cells around each panel (default 40, 3 dents).
 pub fn by_name(name: &str, size: Option<usize>, seed: u64) -> Option<Scene> {
