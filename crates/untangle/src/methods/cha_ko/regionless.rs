@@ -22,9 +22,9 @@
 //! ([`super::Resolver`]) applies it, when enabled (`ResolveParams::regionless_after`, off by
 //! default), only after that many steps without a new lowest count of intersecting pairs while
 //! no vertex is red; each use is recorded in the step report. It is off by default because it
-//! is a gamble: on the CROSS family it turns 0 / 7 resolved runs into 6 / 7, but on the
-//! exploded handkerchief it fires in long stalls that the paper's operations would have ended
-//! and made 2 of 12 seeds stuck (BENCHMARKS.md, docs/cha-ko.md).
+//! is a gamble: at N = 30 it turns 0 / 7 resolved CROSS runs into 6 / 7, but on `cross` it
+//! helps only for N = 25-40, and on the exploded handkerchief it fires in long stalls that the
+//! paper's operations would have ended and made 2 of 12 seeds stuck (docs/cha-ko.md).
 
 use crate::analysis::{coloring, Analysis, AnalysisMesh, Region};
 
