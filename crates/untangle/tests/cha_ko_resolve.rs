@@ -56,13 +56,93 @@ fn closed_rudimentary_case_resolves() {
 #[test]
 fn rudimentary_cases_resolve() {
     // Cha & Ko Sec. 9.1, Fig. 13 (lead's generators): CLOSED, EIGHT, LL, BIBI and BBII
-    // resolve; CROSS does not yet, see `unresolved_cases_stop_and_say_where`. LL needs pulls
-    // only across cut edges (`Params::pull_across_cut_edges`): its path turns into a BLI whose
-    // cone region's rim vertices were pulled in vain for 250 steps without the rule.
+    // resolve with the defaults; CROSS with the regionless fallback, see
+    // `cross_resolves_with_the_regionless_fallback`. LL needs pulls only across cut edges
+    // (`Params::pull_across_cut_edges`): its path turns into a BLI whose cone region's rim
+    // vertices were pulled in vain for 250 steps without the rule.
     for name in ["closed", "eight", "ll", "bibi", "bbii"] {
         let scene = untangle::scenes::by_name(name, None, 1).unwrap();
         let s = resolves(&scene_garment(&scene), 400);
         assert!(s.finesse.rows[0].count > 0, "{name}");
+    }
+}
+
+#[test]
+fn cross_resolves_with_the_regionless_fallback() {
+    // CROSS: its BB half becomes a fold pinched through itself (an empty cut: no region, no red
+    // vertex) and the paper's operations stall; the regionless fallback (ours, off by default,
+    // `methods::cha_ko::regionless`) after 30 stalled steps ends it.
+    let g = scene_garment(&untangle::scenes::by_name("cross", None, 1).unwrap());
+    let (am, pos0) = AnalysisMesh::single(&g.mesh).unwrap();
+    assert!(!analyze(&am, &pos0).unwrap().is_clean());
+    let mut p = params(400);
+    p.regionless_after = 30;
+    let mut r = Resolver::new(&g, p).unwrap();
+    let s = r.run(|_| {}).unwrap();
+    assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");
+    assert!(analyze(&am, r.simulator().positions()).unwrap().is_clean());
+    assert_eq!(r.chako().current_uv(), r.chako().original_uv());
+    assert!(r.history().iter().any(|h| h.regionless_red > 0));
+}
+
+#[test]
+fn the_regionless_fallback_colours_the_corners_of_the_pinched_fold() {
+    // Oracle: CROSS with the fallback off stalls after ~60 steps with every tanglement
+    // regionless (a BB path with an empty cut, no red vertex). The fallback's red set must then
+    // be the corners of the intersecting triangles (`Analysis::intersecting_triangles`, an
+    // independent listing from the segments) minus the loop vertices of the paths.
+    use untangle::methods::cha_ko::regionless::{color_regionless, is_regionless, regionless_red};
+    let g = scene_garment(&untangle::scenes::by_name("cross", None, 1).unwrap());
+    let mut p = params(80);
+    p.regionless_after = 0;
+    let mut r = Resolver::new(&g, p).unwrap();
+    r.run(|_| {}).unwrap();
+    let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
+    let mut a = analyze(&am, r.simulator().positions()).unwrap();
+    assert!(!a.is_clean());
+    assert_eq!(
+        a.coloring.num_red_vertices(),
+        0,
+        "stalled without red vertices"
+    );
+    assert!(a
+        .tanglements
+        .iter()
+        .all(|t| t.paths.iter().any(|&i| is_regionless(&a, i as usize))));
+    let loops: Vec<u32> = a
+        .paths
+        .iter()
+        .flat_map(|p| p.loop_vertices.clone())
+        .collect();
+    let mut expected = vec![false; g.mesh.positions.len()];
+    for t in a.intersecting_triangles() {
+        for v in g.mesh.triangles[t as usize] {
+            expected[v as usize] = !loops.contains(&v);
+        }
+    }
+    let red = regionless_red(&am, &a).expect("regionless tanglements");
+    assert_eq!(red, expected);
+    let added = color_regionless(&am, &mut a);
+    assert_eq!(added, expected.iter().filter(|&&b| b).count());
+    // Recoloured by Sec. 3: every edge with a red end is red, and out-most red vertices exist.
+    for (e, [u, v]) in am.topology.edges.iter().enumerate() {
+        if red[*u as usize] || red[*v as usize] {
+            assert!(a.coloring.red_edge[e]);
+        }
+    }
+    assert!(!a.coloring.outmost_red.is_empty());
+}
+
+#[test]
+fn the_regionless_fallback_leaves_regions_and_bi_paths_alone() {
+    // CLOSED has a true inside region and BI/BI paths do not partition: neither is regionless.
+    use untangle::methods::cha_ko::regionless::regionless_red;
+    for name in ["closed", "bibi"] {
+        let g = scene_garment(&untangle::scenes::by_name(name, None, 1).unwrap());
+        let (am, pos) = AnalysisMesh::single(&g.mesh).unwrap();
+        let a = analyze(&am, &pos).unwrap();
+        assert!(!a.is_clean(), "{name}");
+        assert_eq!(regionless_red(&am, &a), None, "{name}");
     }
 }
 
@@ -79,9 +159,9 @@ fn bli_case_resolves_beyond_the_paper() {
 
 #[test]
 fn unresolved_cases_stop_and_say_where() {
-    // BLI without BLI regions (the paper's method alone) and CROSS: operations saturate, are
-    // abandoned and retried, and the loop stops as stuck with every saturation reported by
-    // vertex and position.
+    // BLI without BLI regions (the paper's method alone) and CROSS with the defaults:
+    // operations saturate, are abandoned and retried, and the loop stops as stuck with every
+    // saturation reported by vertex and position.
     for (name, bli_regions) in [("bli", false), ("cross", true)] {
         let g = scene_garment(&untangle::scenes::by_name(name, None, 1).unwrap());
         let mut p = params(400);

@@ -99,6 +99,12 @@ pub struct Args {
     /// heuristic, are coloured red and pulled out like any other region).
     #[arg(long)]
     pub no_bli_regions: bool,
+    /// Regionless-tanglement fallback (ours): after this many steps without progress while no
+    /// vertex is red, colour red the corners of the intersecting triangles of tanglements that
+    /// have no usable region (a fold pinched through itself, as CROSS ends up); 0 (the default)
+    /// disables it. Try 30 when a run ends stuck with no red vertex left.
+    #[arg(long, default_value_t = 0)]
+    pub regionless_after: usize,
 }
 
 impl Args {
@@ -114,6 +120,7 @@ impl Args {
         p.sim.gravity = Vec3::new(0.0, -self.gravity, 0.0);
         p.max_steps = self.max_steps;
         p.stuck_steps = self.stuck_steps;
+        p.regionless_after = self.regionless_after;
         p.analysis.bli_regions_red = !self.no_bli_regions;
         p
     }
@@ -364,6 +371,7 @@ fn step_json(s: &LoopStep) -> serde_json::Value {
         "red_triangles": s.red_triangles,
         "intersecting_pairs": s.intersecting_pairs,
         "tanglements": s.tanglements,
+        "regionless_red": s.regionless_red,
         "pulls": s.uv.pulls_started + s.uv.pulls_continued,
         "pulls_started": s.uv.pulls_started,
         "shrinks": s.uv.shrinks_started + s.uv.shrinks_continued,

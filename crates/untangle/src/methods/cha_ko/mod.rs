@@ -18,7 +18,8 @@
 //! exact triangle inversion test), [`operations`] (pull, shrink, target choice), [`schedule`]
 //! (Algorithm 2), [`seams`] (coordinated pulls across panels, our design of the missing
 //! Appendix A/B), [`fallback`] (when no fan passes the test, Sec. 6.1, our design of the missing
-//! Appendix C), [`policy`] (m-CCH), [`report`] (per-step reports and the Table 1 analogue),
+//! Appendix C), [`policy`] (m-CCH), [`regionless`] (a fallback colouring for tanglements
+//! without a usable region, ours), [`report`] (per-step reports and the Table 1 analogue),
 //! [`resolve`] (the whole loop of Fig. 1b with the simulator), [`trial`] (the trial step: a
 //! step rolled back and retried when a green vertex turned red, ours).
 
@@ -27,6 +28,7 @@ pub mod fan;
 pub mod operations;
 pub mod params;
 pub mod policy;
+pub mod regionless;
 pub mod report;
 pub mod resolve;
 pub mod schedule;

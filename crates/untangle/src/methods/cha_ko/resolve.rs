@@ -15,7 +15,7 @@
 
 use super::report::{FinesseStats, Stall, UvUpdateReport};
 use super::trial::{trial_step, BlockHistory, TrialReport};
-use super::{ChaKo, Params};
+use super::{regionless, ChaKo, Params};
 use crate::analysis::{analyze_with, Analysis, AnalysisMesh, Coloring};
 use crate::error::Result;
 use crate::geom::Vec3;
@@ -37,6 +37,12 @@ pub struct ResolveParams {
     pub stuck_steps: usize,
     /// Run the uv-space update (off: m-CCH alone, for ablation experiments).
     pub uv_update: bool,
+    /// Regionless-tanglement fallback (ours, [`super::regionless`]): after this many steps
+    /// without a new lowest count of intersecting pairs while no vertex is red, the corners of
+    /// the intersecting triangles of tanglements without a usable region are coloured red, and
+    /// the stall may last `stuck_steps` more steps from then. 0 (the default) turns it off: it
+    /// resolves most CROSS runs but makes some exploded-handkerchief runs stuck.
+    pub regionless_after: usize,
     /// Analysis options. By default BLI paths colour their cone regions red (Wicke's heuristic),
     /// which goes beyond the paper (Cha & Ko leave BLI out): their vertices are then pulled like
     /// any red region. With `bli_regions_red = false` a BLI-only tanglement is reported as a
@@ -64,6 +70,7 @@ impl Default for ResolveParams {
             max_steps: 2000,
             stuck_steps: 100,
             uv_update: true,
+            regionless_after: 0,
             analysis: crate::analysis::Options {
                 bli_regions_red: true,
             },
@@ -78,6 +85,9 @@ pub struct LoopStep {
     pub step: u64,
     /// Intersecting triangle pairs at the start of the step.
     pub intersecting_pairs: usize,
+    /// Vertices the regionless-tanglement fallback coloured red this step (ours,
+    /// [`super::regionless`]; 0 when it did not act). `red_vertices` includes them.
+    pub regionless_red: usize,
     /// Red vertices at the start of the step.
     pub red_vertices: usize,
     /// Red triangles at the start of the step.
@@ -159,6 +169,8 @@ pub struct Resolver {
     idle: usize,
     best_pairs: usize,
     since_best: usize,
+    /// The stall length at which the regionless fallback first acted in the current stall.
+    regionless_fired_at: Option<usize>,
     last_clean: bool,
     last_coloring: Option<Coloring>,
     /// The analysis of the positions a trial step accepted, reused at the start of the next
@@ -187,6 +199,7 @@ impl Resolver {
             idle: 0,
             best_pairs: usize::MAX,
             since_best: 0,
+            regionless_fired_at: None,
             last_clean: false,
             last_coloring: None,
             analysed: None,
@@ -235,6 +248,20 @@ impl Resolver {
             Err(e) => return Ok(self.step_without_analysis(format!("{e:?}"), ms(t0, t1))),
         };
         self.chako.persist_coloring(&self.am, &mut a);
+        let clean = a.is_clean();
+        let regionless_red = if self.params.regionless_after > 0
+            && !clean
+            && self.since_best >= self.params.regionless_after
+            && a.coloring.num_red_vertices() == 0
+        {
+            let n = regionless::color_regionless(&self.am, &mut a);
+            if n > 0 && self.regionless_fired_at.is_none() {
+                self.regionless_fired_at = Some(self.since_best);
+            }
+            n
+        } else {
+            0
+        };
         let uv = if self.params.uv_update {
             self.chako.update_uv(&self.am, &a, &pos)?
         } else {
@@ -262,7 +289,6 @@ impl Resolver {
             (self.sim.step(&policy), TrialReport::default())
         };
         let t3 = Instant::now();
-        let clean = a.is_clean();
         let index = self.history.len() as u64;
         if clean && self.clean_at.is_none() {
             self.clean_at = Some(index);
@@ -278,12 +304,14 @@ impl Resolver {
         if a.segments.len() < self.best_pairs {
             self.best_pairs = a.segments.len();
             self.since_best = 0;
+            self.regionless_fired_at = None;
         } else {
             self.since_best += 1;
         }
         let rec = LoopStep {
             step: index,
             intersecting_pairs: a.segments.len(),
+            regionless_red,
             red_vertices: a.coloring.num_red_vertices(),
             red_triangles: a.coloring.num_red_triangles(),
             tanglements: a.tanglements.len(),
@@ -319,6 +347,7 @@ impl Resolver {
         let rec = LoopStep {
             step: self.history.len() as u64,
             intersecting_pairs: prev.map_or(0, |s| s.intersecting_pairs),
+            regionless_red: 0,
             red_vertices: prev.map_or(0, |s| s.red_vertices),
             red_triangles: prev.map_or(0, |s| s.red_triangles),
             tanglements: prev.map_or(0, |s| s.tanglements),
@@ -352,7 +381,11 @@ impl Resolver {
         }
         if !self.history.is_empty()
             && !self.last_clean
-            && (self.idle >= self.params.stuck_steps || self.since_best >= self.params.stuck_steps)
+            && (self.idle >= self.params.stuck_steps
+                || self.since_best
+                    >= self
+                        .regionless_fired_at
+                        .map_or(self.params.stuck_steps, |f| f + self.params.stuck_steps))
         {
             return Some(Outcome::Stuck);
         }
