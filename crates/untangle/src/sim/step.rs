@@ -434,8 +434,7 @@ impl Simulator {
     /// only the matrix entries they touch, each summed as a full rebuild sums it (the same
     /// bits); when more than an eighth of the triangles change, everything is rebuilt in
     /// O(triangles + edges). Masses stay those of the original rest shape. With projective
-    /// dynamics the factor is kept; the global step solves the new system by CG preconditioned
-    /// with it and refactors when that needs many more iterations.
+    /// dynamics the next step factors the new matrix (if it differs from the factored one).
     /// On error (a degenerate uv triangle, wrong count) nothing changes.
     pub fn set_rest_uv(&mut self, uv: &[Vec2]) -> Result<()> {
         if uv.len() != self.uv.len() {
@@ -1016,7 +1015,6 @@ impl Simulator {
             key: None,
             rest_changed: false,
             factor_exact: false,
-            last: 0,
             factored_values: Vec::new(),
         });
         if pd.system.elastic() != elastic {
@@ -1036,8 +1034,10 @@ impl Simulator {
             elastic,
             pinned: self.pinned.clone(),
         };
-        // The kept factor of an older rest shape preconditions CG; once a global step of the
-        // previous step needed more than a few CG iterations, factor the current matrix.
+        // A rest edit that changed the matrix: factor the new one. (Keeping the old factor as
+        // CG's preconditioner until a global step needed more than three CG iterations cost
+        // more: in the Cha & Ko loop, whose rest shape changes every step, 42.5 CG iterations
+        // per step against 25 with the current factor; BENCHMARKS.md, branch loop6.)
         if pd.rest_changed {
             // A rest edit that leaves the matrix as it was (e.g. a uniform scaling of a
             // triangle: area x |Dm^-1|^2 is invariant) keeps the factor exact.
@@ -1049,7 +1049,7 @@ impl Simulator {
                     .all(|(a, b)| (a - b).abs() <= 1e-12 * a.abs().max(b.abs()));
             pd.rest_changed = false;
         }
-        let degraded = !pd.factor_exact && pd.last > PD_REFACTOR_CG;
+        let degraded = !pd.factor_exact;
         let mut result = ProjectiveResult::default();
         if pd.factor.is_none() || pd.key.as_ref() != Some(&key) || degraded {
             let tf = Instant::now();
@@ -1119,7 +1119,6 @@ impl Simulator {
         // extrapolated prediction `x + h (v + dv_prev)` instead injected energy whenever the
         // iterations had not converged (a hanging sheet swung higher and higher).
         let mut x = y.clone();
-        let mut largest_cg = 0;
         let mut cg = PcgResult {
             converged: true,
             ..Default::default()
@@ -1325,7 +1324,6 @@ impl Simulator {
                     result.global_ms += tg.elapsed().as_secs_f64() * 1e3;
                     result.iterations += 1;
                     cg.iterations += r.iterations;
-                    largest_cg = largest_cg.max(r.iterations);
                     cg.relative_residual = r.relative_residual;
                     cg.converged &= r.converged;
                     if result.iterations >= p.projective_iterations {
@@ -1358,7 +1356,6 @@ impl Simulator {
             }
         });
         result.cg_iterations = cg.iterations;
-        pd.last = largest_cg;
         result.relative_residual = cg.relative_residual;
         // Normal impulses of the kept contacts (friction bound of the next step): the
         // constraint force of the last global step times h.
@@ -1601,9 +1598,6 @@ fn low_rank_terms(
     (groups, terms)
 }
 
-/// CG iterations of one projective global step above which, once the rest shape changed, the
-/// factor is recomputed for the next step.
-const PD_REFACTOR_CG: usize = 3;
 /// Cap of the CG iterations of one projective global step.
 const PD_CG_CAP: usize = 10;
 /// Relative CG tolerance of a projective global step with contact terms.
@@ -1628,8 +1622,6 @@ struct PdState {
     rest_changed: bool,
     /// Whether the factor is of the current base matrix.
     factor_exact: bool,
-    /// Most CG iterations of one global step in the last step.
-    last: usize,
     /// The scalar matrix the factor is of.
     factored_values: Vec<f64>,
 }
