@@ -48,6 +48,7 @@ fn main() {
     // The loop of `Resolver::run`, driven here so that CHA_KO_BENCH_VERBOSE=1 can print each
     // step's simulator report (JSON: collision passes, impact zones, per-phase milliseconds).
     let verbose = std::env::var("CHA_KO_BENCH_VERBOSE").is_ok();
+    let mut phases = Phases::default();
     let outcome = loop {
         if let Some(o) = r.stop_reason() {
             break o;
@@ -60,6 +61,7 @@ fn main() {
         if verbose {
             eprintln!("{}", sr.to_json());
         }
+        phases.add(&sr);
     };
     let s = r.summary(outcome);
     let wall = t.elapsed().as_secs_f64();
@@ -93,6 +95,85 @@ fn main() {
         "largest uv update {:.3} ms",
         h.iter().map(|x| x.ms_uv).fold(0.0, f64::max)
     );
+    phases.print(n);
+}
+
+/// Sums over the loop's simulator steps of the per-phase timings and counts of their reports.
+#[derive(Default)]
+struct Phases {
+    assemble: f64,
+    solve: f64,
+    collisions: f64,
+    local: f64,
+    global: f64,
+    factor: f64,
+    refactors: usize,
+    pd_iterations: usize,
+    cg_iterations: usize,
+    springs: usize,
+    broad: f64,
+    proximity: f64,
+    impulses: f64,
+    zones: f64,
+    candidates: usize,
+    proximity_impulses: usize,
+    ccd_passes: usize,
+    zone_passes: usize,
+}
+
+impl Phases {
+    fn add(&mut self, r: &untangle::sim::StepReport) {
+        self.assemble += r.timing.assemble;
+        self.solve += r.timing.solve;
+        self.collisions += r.timing.collisions;
+        if let Some(p) = &r.projective {
+            self.local += p.local_ms;
+            self.global += p.global_ms;
+            self.factor += p.factor_ms;
+            self.refactors += p.refactored as usize;
+            self.pd_iterations += p.iterations;
+        }
+        self.cg_iterations += r.cg.iterations;
+        self.springs += r.contact_springs;
+        let c = &r.collisions;
+        self.broad += c.timing.broad;
+        self.proximity += c.timing.proximity;
+        self.impulses += c.timing.impulses;
+        self.zones += c.timing.zones;
+        self.candidates += c.candidates;
+        self.proximity_impulses += c.proximity_impulses;
+        self.ccd_passes += c.iterations;
+        self.zone_passes += c.zone_iterations;
+    }
+
+    /// Means per loop step (`n` steps).
+    fn print(&self, n: f64) {
+        let c = |k: usize| k as f64 / n;
+        println!(
+            "simulation per step: assemble {:.1}, solve {:.1} (local {:.1}, global {:.1}, factor {:.1} ms in {} refactors; {:.1} local/global iterations, {:.1} CG iterations, {:.0} contact springs), collisions {:.1} ms",
+            self.assemble / n,
+            self.solve / n,
+            self.local / n,
+            self.global / n,
+            self.factor / n,
+            self.refactors,
+            c(self.pd_iterations),
+            c(self.cg_iterations),
+            c(self.springs),
+            self.collisions / n,
+        );
+        println!(
+            "collisions per step: broad {:.1}, proximity {:.1}, CCD impulses {:.1}, impact zones {:.1} ms; {:.0} candidates, {:.0} proximity impulses, {:.1} CCD passes, {:.1} zone passes",
+            self.broad / n,
+            self.proximity / n,
+            self.impulses / n,
+            self.zones / n,
+            c(self.candidates),
+            c(self.proximity_impulses),
+            c(self.ccd_passes),
+            c(self.zone_passes),
+        );
+    }
 }
 
 /// Sews ARCSim's unsewn pattern: `steps` plain simulator steps (no gravity, conventional

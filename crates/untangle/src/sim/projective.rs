@@ -461,6 +461,67 @@ impl Projective {
         self.rebuild_stiffness();
     }
 
+    /// Applies a partial rest edit ([`super::rest::RestIndex::edit`]) and recomputes only the
+    /// entries of `L` of the changed triangles and stencils, each summed over the same
+    /// contributions in the same order as [`Projective::set_rest`] (the same bits).
+    pub fn update_rest(&mut self, edit: &super::rest::RestEdit) {
+        let w = self.weights.0 + self.weights.1;
+        let kb = self.elastic.bend;
+        let mut slots: Vec<usize> = Vec::new();
+        for (t, r) in &edit.triangles {
+            self.rest[*t as usize] = *r;
+            let tri = self.triangles[*t as usize];
+            for i in 0..3 {
+                for j in 0..3 {
+                    slots.push(self.pattern.slot(tri[i], tri[j]).expect("triangle pair"));
+                }
+            }
+        }
+        for (k, b) in &edit.stencils {
+            self.bend[*k as usize] = *b;
+            for i in 0..4 {
+                for j in 0..4 {
+                    slots.push(
+                        self.pattern
+                            .slot(b.vertices[i], b.vertices[j])
+                            .expect("bending pair"),
+                    );
+                }
+            }
+        }
+        slots.sort_unstable();
+        slots.dedup();
+        for &k in &slots {
+            self.stiff[k] = 0.0;
+        }
+        let changed = |k: usize| slots.binary_search(&k).is_ok();
+        for &t in &edit.near_triangles {
+            let (tri, r) = (self.triangles[t as usize], &self.rest[t as usize]);
+            for i in 0..3 {
+                for j in 0..3 {
+                    let k = self.pattern.slot(tri[i], tri[j]).expect("triangle pair");
+                    if changed(k) {
+                        self.stiff[k] += w * r.area * (r.a[i] * r.a[j] + r.b[i] * r.b[j]);
+                    }
+                }
+            }
+        }
+        for &b in &edit.near_stencils {
+            let s = &self.bend[b as usize];
+            for i in 0..4 {
+                for j in 0..4 {
+                    let k = self
+                        .pattern
+                        .slot(s.vertices[i], s.vertices[j])
+                        .expect("bending pair");
+                    if changed(k) {
+                        self.stiff[k] += kb * s.weights[i] * s.weights[j];
+                    }
+                }
+            }
+        }
+    }
+
     /// Changes the elastic parameters and rebuilds `L`.
     pub fn set_elastic(&mut self, elastic: Elastic) {
         self.elastic = elastic;

@@ -8,7 +8,7 @@ use super::forces::bend::BendStencil;
 use super::forces::stretch::TriangleRest;
 use crate::error::{Error, Result};
 use crate::geom::Vec2;
-use crate::mesh::topology::NONE;
+use crate::mesh::topology::{Csr, NONE};
 use crate::mesh::Topology;
 
 /// Rest data derived from a uv layout.
@@ -36,41 +36,230 @@ impl RestShape {
         for (i, r) in rest.into_iter().enumerate() {
             tris.push(r.map_err(|e| Error::input(format!("triangle {}", i + 1), e.to_string()))?);
         }
-        let corner = |t: u32, v: u32| -> usize {
-            triangles[t as usize]
-                .iter()
-                .position(|&x| x == v)
-                .expect("edge vertex in its triangle")
-        };
         let bend = topology
             .edges
             .par_iter()
-            .zip(&topology.edge_triangles)
-            .filter_map(|(e, ts)| {
-                if ts[1] == NONE {
-                    return None;
-                }
-                let side = |t: u32| {
-                    let (ka, kb) = (corner(t, e[0]), corner(t, e[1]));
-                    let kc = 3 - ka - kb;
-                    let ut = uv_triangles[t as usize];
-                    (
-                        triangles[t as usize][kc],
-                        [ka, kb, kc].map(|k| uv[ut[k] as usize]),
-                    )
-                };
-                let (c0, u0) = side(ts[0]);
-                let (c1, u1) = side(ts[1]);
-                if c0 == c1 {
-                    return None;
-                }
-                Some(BendStencil::new([e[0], e[1], c0, c1], u0, u1))
-            })
+            .enumerate()
+            .filter_map(|(e, _)| bend_stencil(triangles, uv_triangles, uv, topology, e))
             .collect();
         Ok(RestShape {
             triangles: tris,
             bend,
         })
+    }
+}
+
+/// The bending stencil of edge `e` (Sec. 5.1's rest shape from the uv of the two triangles at
+/// the edge); `None` for a boundary edge or an edge whose two triangles share all three
+/// vertices. Which edges have a stencil depends on the topology only, not on the uv.
+pub fn bend_stencil(
+    triangles: &[[u32; 3]],
+    uv_triangles: &[[u32; 3]],
+    uv: &[Vec2],
+    topology: &Topology,
+    e: usize,
+) -> Option<BendStencil> {
+    let ev = topology.edges[e];
+    let ts = topology.edge_triangles[e];
+    if ts[1] == NONE {
+        return None;
+    }
+    let corner = |t: u32, v: u32| -> usize {
+        triangles[t as usize]
+            .iter()
+            .position(|&x| x == v)
+            .expect("edge vertex in its triangle")
+    };
+    let side = |t: u32| {
+        let (ka, kb) = (corner(t, ev[0]), corner(t, ev[1]));
+        let kc = 3 - ka - kb;
+        let ut = uv_triangles[t as usize];
+        (
+            triangles[t as usize][kc],
+            [ka, kb, kc].map(|k| uv[ut[k] as usize]),
+        )
+    };
+    let (c0, u0) = side(ts[0]);
+    let (c1, u1) = side(ts[1]);
+    if c0 == c1 {
+        return None;
+    }
+    Some(BendStencil::new([ev[0], ev[1], c0, c1], u0, u1))
+}
+
+/// Which rest data a uv edit touches (built once per mesh), so that an edit of a few uv
+/// coordinates (Cha & Ko 2022, Sec. 5.1: a few operations per step) recomputes only the rest
+/// data of the triangles using them and of the bending stencils at their edges.
+#[derive(Clone, Debug)]
+pub struct RestIndex {
+    /// Triangles using each uv coordinate.
+    uv_triangles: Csr,
+    /// Index into [`RestShape::bend`] of each edge's stencil ([`NONE`] if it has none).
+    stencil_of_edge: Vec<u32>,
+    /// Stencils with each world vertex, ascending.
+    vertex_stencils: Csr,
+    /// Triangles with each world vertex, ascending.
+    vertex_triangles: Csr,
+}
+
+/// The rest data an edit changed: triangles and bending stencils (ascending indices into
+/// [`RestShape::triangles`] and [`RestShape::bend`]) with their new values, and every triangle
+/// and stencil with a vertex of a changed one (ascending): the ones whose contributions to a
+/// matrix entry of a changed one have to be summed again.
+#[derive(Clone, Debug, Default)]
+pub struct RestEdit {
+    /// Changed triangles and their new rest data.
+    pub triangles: Vec<(u32, TriangleRest)>,
+    /// Changed stencils and their new values.
+    pub stencils: Vec<(u32, BendStencil)>,
+    /// Triangles with a vertex of a changed triangle or stencil.
+    pub near_triangles: Vec<u32>,
+    /// Stencils with a vertex of a changed triangle or stencil.
+    pub near_stencils: Vec<u32>,
+}
+
+impl RestIndex {
+    /// The index of a mesh (`triangles`, uv corners `uv_triangles` into `uv_count` coordinates)
+    /// whose rest shape is `rest`.
+    pub fn new(
+        triangles: &[[u32; 3]],
+        uv_triangles: &[[u32; 3]],
+        uv_count: usize,
+        topology: &Topology,
+        rest: &RestShape,
+    ) -> RestIndex {
+        let uv_tris = Csr::from_pairs(
+            uv_count,
+            uv_triangles
+                .iter()
+                .enumerate()
+                .flat_map(|(t, u)| u.iter().map(move |&k| (k, t as u32))),
+        );
+        let mut stencil_of_edge = vec![NONE; topology.edges.len()];
+        let mut k = 0;
+        for (e, s) in stencil_of_edge.iter_mut().enumerate() {
+            if let Some(b) = rest.bend.get(k) {
+                let ev = topology.edges[e];
+                if b.vertices[0] == ev[0] && b.vertices[1] == ev[1] {
+                    *s = k as u32;
+                    k += 1;
+                }
+            }
+        }
+        debug_assert_eq!(
+            k,
+            rest.bend.len(),
+            "one stencil per interior edge, in edge order"
+        );
+        let n = topology.num_vertices;
+        let vertex_stencils = Csr::from_pairs(
+            n,
+            rest.bend
+                .iter()
+                .enumerate()
+                .flat_map(|(s, b)| b.vertices.iter().map(move |&v| (v, s as u32))),
+        );
+        let vertex_triangles = Csr::from_pairs(
+            n,
+            triangles
+                .iter()
+                .enumerate()
+                .flat_map(|(t, tri)| tri.iter().map(move |&v| (v, t as u32))),
+        );
+        RestIndex {
+            uv_triangles: uv_tris,
+            stencil_of_edge,
+            vertex_stencils,
+            vertex_triangles,
+        }
+    }
+
+    /// The rest data that changes when the uv goes from `old` to `new` (bitwise comparison),
+    /// or `None` when more than `max_triangles` triangles change (a full rebuild is then
+    /// cheaper). An error, as [`RestShape::new`]'s, if a changed triangle is degenerate.
+    #[allow(clippy::too_many_arguments)]
+    pub fn edit(
+        &self,
+        triangles: &[[u32; 3]],
+        uv_triangles: &[[u32; 3]],
+        topology: &Topology,
+        old: &[Vec2],
+        new: &[Vec2],
+        max_triangles: usize,
+    ) -> Result<Option<RestEdit>> {
+        let same =
+            |a: &Vec2, b: &Vec2| a.x.to_bits() == b.x.to_bits() && a.y.to_bits() == b.y.to_bits();
+        let mut tris: Vec<u32> = Vec::new();
+        for (k, (a, b)) in old.iter().zip(new).enumerate() {
+            if !same(a, b) {
+                tris.extend_from_slice(self.uv_triangles.row(k));
+                if tris.len() > 3 * max_triangles {
+                    return Ok(None);
+                }
+            }
+        }
+        tris.sort_unstable();
+        tris.dedup();
+        if tris.len() > max_triangles {
+            return Ok(None);
+        }
+        let mut edit = RestEdit::default();
+        for &t in &tris {
+            let u = uv_triangles[t as usize];
+            let r = TriangleRest::new(
+                &new[u[0] as usize],
+                &new[u[1] as usize],
+                &new[u[2] as usize],
+            )
+            .map_err(|e| Error::input(format!("triangle {}", t + 1), e.to_string()))?;
+            edit.triangles.push((t, r));
+        }
+        let mut stencils: Vec<(u32, usize)> = tris
+            .iter()
+            .flat_map(|&t| topology.triangle_edges[t as usize])
+            .filter_map(|e| {
+                let s = self.stencil_of_edge[e as usize];
+                (s != NONE).then_some((s, e as usize))
+            })
+            .collect();
+        stencils.sort_unstable();
+        stencils.dedup();
+        for (s, e) in stencils {
+            let b = bend_stencil(triangles, uv_triangles, new, topology, e)
+                .expect("an edge with a stencil keeps it");
+            edit.stencils.push((s, b));
+        }
+        let mut verts: Vec<u32> = edit
+            .triangles
+            .iter()
+            .flat_map(|&(t, _)| triangles[t as usize])
+            .chain(edit.stencils.iter().flat_map(|(_, b)| b.vertices))
+            .collect();
+        verts.sort_unstable();
+        verts.dedup();
+        for &v in &verts {
+            edit.near_triangles
+                .extend_from_slice(self.vertex_triangles.row(v as usize));
+            edit.near_stencils
+                .extend_from_slice(self.vertex_stencils.row(v as usize));
+        }
+        edit.near_triangles.sort_unstable();
+        edit.near_triangles.dedup();
+        edit.near_stencils.sort_unstable();
+        edit.near_stencils.dedup();
+        Ok(Some(edit))
+    }
+}
+
+impl RestShape {
+    /// Applies the changes of `edit` ([`RestIndex::edit`]).
+    pub fn apply(&mut self, edit: &RestEdit) {
+        for (t, r) in &edit.triangles {
+            self.triangles[*t as usize] = *r;
+        }
+        for (s, b) in &edit.stencils {
+            self.bend[*s as usize] = *b;
+        }
     }
 }
 

@@ -28,7 +28,7 @@ use super::policy::Contact;
 use super::policy::ContactPolicy;
 use super::projective::{self, Elastic, Projective, ProjectiveResult, StepProblem};
 use super::report::{Energy, StepReport, StepTiming};
-use super::rest::RestShape;
+use super::rest::{RestEdit, RestIndex, RestShape};
 use super::sparse::{BsrMatrix, BsrPattern};
 use crate::error::{Error, Result};
 use crate::geom::{Vec2, Vec3};
@@ -254,6 +254,8 @@ pub struct Simulator {
     topology: Topology,
     uv: Vec<Vec2>,
     rest: RestShape,
+    /// What a uv edit touches ([`Simulator::set_rest_uv`] updates only that).
+    rest_index: RestIndex,
     mass: Vec<f64>,
     x: Vec<Vec3>,
     v: Vec<Vec3>,
@@ -360,7 +362,15 @@ impl Simulator {
             })
             .collect();
         let total_mass = mass.iter().sum();
+        let rest_index = RestIndex::new(
+            &mesh.triangles,
+            &uv.triangles,
+            uv.coords.len(),
+            &topology,
+            &rest,
+        );
         let mut sim = Simulator {
+            rest_index,
             hinge,
             params,
             triangles: mesh.triangles.clone(),
@@ -418,10 +428,14 @@ impl Simulator {
         self.bend_base = base;
     }
 
-    /// Replaces the rest shape by new uv coordinates (one per uv index of the garment, metres):
-    /// O(triangles + edges), meant to be called every step (Cha & Ko 2022, Sec. 5.1). Masses
-    /// stay those of the original rest shape. On error (a degenerate uv triangle, wrong count)
-    /// nothing changes.
+    /// Replaces the rest shape by new uv coordinates (one per uv index of the garment, metres),
+    /// meant to be called every step (Cha & Ko 2022, Sec. 5.1). Only the rest data of the
+    /// triangles whose uv changed and of the bending stencils at their edges is recomputed, and
+    /// only the matrix entries they touch, each summed as a full rebuild sums it (the same
+    /// bits); when more than an eighth of the triangles change, everything is rebuilt in
+    /// O(triangles + edges). Masses stay those of the original rest shape. With projective
+    /// dynamics the next step factors the new matrix (if it differs from the factored one).
+    /// On error (a degenerate uv triangle, wrong count) nothing changes.
     pub fn set_rest_uv(&mut self, uv: &[Vec2]) -> Result<()> {
         if uv.len() != self.uv.len() {
             return Err(Error::Parameter(format!(
@@ -430,17 +444,71 @@ impl Simulator {
                 self.uv.len()
             )));
         }
-        let rest = RestShape::new(&self.triangles, &self.uv_triangles, uv, &self.topology)?;
-        self.uv.copy_from_slice(uv);
-        self.rest = rest;
-        self.rebuild_bend_base();
-        if let Some(pd) = &mut self.pd {
-            // The factor is kept; the global step solves the new system by CG preconditioned
-            // with it and refactors when that needs many more iterations.
-            pd.system.set_rest(&self.rest);
-            pd.rest_changed = true;
+        let edit = self.rest_index.edit(
+            &self.triangles,
+            &self.uv_triangles,
+            &self.topology,
+            &self.uv,
+            uv,
+            self.triangles.len() / 8,
+        )?;
+        match edit {
+            Some(edit) => {
+                self.uv.copy_from_slice(uv);
+                self.rest.apply(&edit);
+                self.update_bend_base(&edit);
+                if let Some(pd) = &mut self.pd {
+                    pd.system.update_rest(&edit);
+                    pd.rest_changed = true;
+                }
+            }
+            None => {
+                let rest = RestShape::new(&self.triangles, &self.uv_triangles, uv, &self.topology)?;
+                self.uv.copy_from_slice(uv);
+                self.rest = rest;
+                self.rebuild_bend_base();
+                if let Some(pd) = &mut self.pd {
+                    pd.system.set_rest(&self.rest);
+                    pd.rest_changed = true;
+                }
+            }
         }
         Ok(())
+    }
+
+    /// [`Simulator::rebuild_bend_base`] for the slots of the stencils `edit` changed (already
+    /// applied to `self.rest`), summed over the same stencils in the same order.
+    fn update_bend_base(&mut self, edit: &RestEdit) {
+        let kb = self.params.bend_stiffness;
+        let slot = |a: u32, b: u32| {
+            self.pattern
+                .slot(a, b)
+                .expect("bending pairs are in the pattern")
+        };
+        let mut slots: Vec<usize> = edit
+            .stencils
+            .iter()
+            .flat_map(|(_, b)| (0..16).map(move |k| (b.vertices[k / 4], b.vertices[k % 4])))
+            .map(|(a, b)| slot(a, b))
+            .collect();
+        slots.sort_unstable();
+        slots.dedup();
+        let mut base = std::mem::take(&mut self.bend_base);
+        for &k in &slots {
+            base[k] = 0.0;
+        }
+        for &s in &edit.near_stencils {
+            let b = &self.rest.bend[s as usize];
+            for i in 0..4 {
+                for j in 0..4 {
+                    let k = slot(b.vertices[i], b.vertices[j]);
+                    if slots.binary_search(&k).is_ok() {
+                        base[k] += kb * b.weights[i] * b.weights[j];
+                    }
+                }
+            }
+        }
+        self.bend_base = base;
     }
 
     /// The current rest uv.
@@ -948,7 +1016,6 @@ impl Simulator {
             rest_changed: false,
             factor_exact: false,
             factored_values: Vec::new(),
-            last: 0,
         });
         if pd.system.elastic() != elastic {
             pd.system.set_elastic(elastic);
@@ -967,8 +1034,10 @@ impl Simulator {
             elastic,
             pinned: self.pinned.clone(),
         };
-        // The kept factor of an older rest shape preconditions CG; once a global step of the
-        // previous step needed more than a few CG iterations, factor the current matrix.
+        // A rest edit that changed the matrix: factor the new one. (Keeping the old factor as
+        // CG's preconditioner until a global step needed more than three CG iterations cost
+        // more: in the Cha & Ko loop, whose rest shape changes every step, 42.5 CG iterations
+        // per step against 25 with the current factor; BENCHMARKS.md, branch loop6.)
         if pd.rest_changed {
             // A rest edit that leaves the matrix as it was (e.g. a uniform scaling of a
             // triangle: area x |Dm^-1|^2 is invariant) keeps the factor exact.
@@ -980,7 +1049,7 @@ impl Simulator {
                     .all(|(a, b)| (a - b).abs() <= 1e-12 * a.abs().max(b.abs()));
             pd.rest_changed = false;
         }
-        let degraded = !pd.factor_exact && pd.last > PD_REFACTOR_CG;
+        let degraded = !pd.factor_exact;
         let mut result = ProjectiveResult::default();
         if pd.factor.is_none() || pd.key.as_ref() != Some(&key) || degraded {
             let tf = Instant::now();
@@ -1046,7 +1115,6 @@ impl Simulator {
             // only lowers the quadratic), and the next iteration solves again.
             max_iterations: p.cg_max_iterations.min(PD_CG_CAP),
         };
-        let mut largest_cg = 0;
         // Start at the inertial target `y` (Bouaziz et al. 2014, Alg. 1). Starting at the
         // extrapolated prediction `x + h (v + dv_prev)` instead injected energy whenever the
         // iterations had not converged (a hanging sheet swung higher and higher).
@@ -1256,7 +1324,6 @@ impl Simulator {
                     result.global_ms += tg.elapsed().as_secs_f64() * 1e3;
                     result.iterations += 1;
                     cg.iterations += r.iterations;
-                    largest_cg = largest_cg.max(r.iterations);
                     cg.relative_residual = r.relative_residual;
                     cg.converged &= r.converged;
                     if result.iterations >= p.projective_iterations {
@@ -1290,7 +1357,6 @@ impl Simulator {
         });
         result.cg_iterations = cg.iterations;
         result.relative_residual = cg.relative_residual;
-        pd.last = largest_cg;
         // Normal impulses of the kept contacts (friction bound of the next step): the
         // constraint force of the last global step times h.
         self.contact_impulse.iter_mut().for_each(|l| *l = 0.0);
@@ -1478,8 +1544,6 @@ struct Solved {
     assembled: Instant,
 }
 
-/// CG iterations of one projective global step above which, once the rest shape changed, the
-/// factor is recomputed for the next step.
 /// The contact terms of a projective global step as rank-one terms ([`low_rank`]): per spring
 /// one group (its four weighted nodes) with the normal penalty, per obstacle contact one group
 /// (its vertex) with the normal constraint and, with friction `k > 0`, two tangential penalties.
@@ -1534,7 +1598,6 @@ fn low_rank_terms(
     (groups, terms)
 }
 
-const PD_REFACTOR_CG: usize = 3;
 /// Cap of the CG iterations of one projective global step.
 const PD_CG_CAP: usize = 10;
 /// Relative CG tolerance of a projective global step with contact terms.
@@ -1561,8 +1624,6 @@ struct PdState {
     factor_exact: bool,
     /// The scalar matrix the factor is of.
     factored_values: Vec<f64>,
-    /// Most CG iterations of one global step in the last step.
-    last: usize,
 }
 
 fn check_vectors(what: &str, x: &[Vec3], n: usize) -> Result<()> {
@@ -1576,4 +1637,99 @@ fn check_vectors(what: &str, x: &[Vec3], n: usize) -> Result<()> {
         return Err(Error::Parameter(format!("{what}: entry {i} is not finite")));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::UniformThickness;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// Debug strings tell every two different floats apart (also `0.0` and `-0.0`).
+    fn bits<T: std::fmt::Debug>(x: &T) -> String {
+        format!("{x:?}")
+    }
+
+    /// `set_rest_uv`'s partial update (a few uv coordinates moved) against the rest shape,
+    /// bending base and projective matrix computed from scratch for the same uv: equal bit for
+    /// bit, over several edits in a row, one of them large enough for the full rebuild; a
+    /// degenerate edit is an error and changes nothing.
+    #[test]
+    fn partial_rest_updates_equal_a_rebuild_from_scratch() {
+        let g = Garment::new(crate::scenes::exploded::exploded(3, 14).meshes[0].clone()).unwrap();
+        let params = SimParams {
+            integrator: Integrator::Projective,
+            gravity: Vec3::zeros(),
+            ..SimParams::default()
+        };
+        let mut sim = Simulator::new(&g, params.clone()).unwrap();
+        sim.step(&UniformThickness(1e-3));
+        let n = sim.x.len();
+        let inertia: Vec<f64> = (0..n).map(|i| 1.0 + i as f64).collect();
+        let mut uv = g.uv().coords.clone();
+        let nt = g.mesh.triangles.len();
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for round in 0..8 {
+            // Round 5 moves every coordinate (a full rebuild), the others one to four.
+            let moves = if round == 5 { uv.len() } else { 1 + round % 4 };
+            for _ in 0..moves {
+                let k = rng.random_range(0..uv.len());
+                uv[k] += Vec2::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5) * 1e-3;
+            }
+            let edit = sim
+                .rest_index
+                .edit(
+                    &sim.triangles,
+                    &sim.uv_triangles,
+                    &sim.topology,
+                    &sim.uv,
+                    &uv,
+                    nt / 8,
+                )
+                .unwrap();
+            assert_eq!(
+                edit.is_none(),
+                round == 5,
+                "partial unless everything moved"
+            );
+            if let Some(e) = &edit {
+                assert!(!e.triangles.is_empty() && e.triangles.len() <= 4 * 8);
+            }
+            sim.set_rest_uv(&uv).unwrap();
+            let full =
+                RestShape::new(&sim.triangles, &sim.uv_triangles, &uv, &sim.topology).unwrap();
+            assert_eq!(bits(&sim.rest.triangles), bits(&full.triangles));
+            assert_eq!(bits(&sim.rest.bend), bits(&full.bend));
+            let mut fresh = Simulator::new(&g, params.clone()).unwrap();
+            fresh.rest = full.clone();
+            fresh.rebuild_bend_base();
+            assert_eq!(bits(&sim.bend_base), bits(&fresh.bend_base));
+            let elastic = sim.pd.as_ref().unwrap().system.elastic();
+            let pd = Projective::new(n, &sim.triangles, &full, elastic);
+            assert_eq!(
+                bits(&sim.pd.as_ref().unwrap().system.system_values(&inertia, 0.0)),
+                bits(&pd.system_values(&inertia, 0.0))
+            );
+            sim.step(&UniformThickness(1e-3));
+        }
+        // A degenerate uv triangle: an error, nothing changed.
+        let before = (
+            bits(&sim.uv),
+            bits(&sim.rest.triangles),
+            bits(&sim.bend_base),
+        );
+        let mut bad = uv.clone();
+        let t = sim.uv_triangles[0];
+        bad[t[1] as usize] = bad[t[0] as usize];
+        assert!(sim.set_rest_uv(&bad).is_err());
+        assert_eq!(
+            before,
+            (
+                bits(&sim.uv),
+                bits(&sim.rest.triangles),
+                bits(&sim.bend_base)
+            )
+        );
+    }
 }
