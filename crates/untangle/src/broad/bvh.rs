@@ -451,7 +451,7 @@ fn overlap(a: &Aabb, b: &Aabb) -> bool {
 }
 
 /// Interleaves the low 21 bits of x, y, z.
-fn morton3(x: u64, y: u64, z: u64) -> u64 {
+pub(crate) fn morton3(x: u64, y: u64, z: u64) -> u64 {
     fn spread(mut v: u64) -> u64 {
         v &= 0x1f_ffff;
         v = (v | v << 32) & 0x1f_0000_0000_ffff;

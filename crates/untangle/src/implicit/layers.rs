@@ -13,6 +13,7 @@ use crate::analysis::{self, AnalysisMesh, ObjectKind};
 use crate::error::{Error, Result};
 use crate::geom::{Aabb, Vec3};
 use crate::mesh::{Mesh, Topology};
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// How the fields of one garment (or the body) are built and cached (Sec. 4).
@@ -460,16 +461,20 @@ pub fn untangle_with_fields(
         repair_ms: 0.0,
     };
     let t_all = Instant::now();
-    let mut topos = Vec::with_capacity(garments.len());
+    // The garments' topologies, side by side (each is sequential).
+    let topos: Vec<Topology> = garments
+        .par_iter()
+        .map(|g| Topology::new(g.mesh))
+        .collect::<Result<_>>()?;
     for (k, g) in garments.iter().enumerate() {
         let t = Instant::now();
-        let topo = Topology::new(g.mesh)?;
+        let topo = &topos[k];
         let pr = project_layer(
             &composer,
             offset + k,
             &g.mesh.positions,
             &g.mesh.triangles,
-            &topo,
+            topo,
             &pp,
             &|iteration| {
                 progress(Stage::Projection {
@@ -508,7 +513,6 @@ pub fn untangle_with_fields(
             projection_ms: ms,
         });
         out.projections.push(pr);
-        topos.push(topo);
     }
     out.projection_ms = t_all.elapsed().as_secs_f64() * 1e3;
     if params.repair.steps > 0 || params.repair.pair_rounds > 0 {

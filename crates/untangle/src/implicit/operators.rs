@@ -67,6 +67,9 @@
 /// Most layers (body included) one operator handles; field vectors live on the stack.
 pub const MAX_LAYERS: usize = 16;
 
+/// Most pieces of one operator: `(i + 1) (n − i)` runs for layer `i` of `n ≤ MAX_LAYERS`.
+const MAX_PIECES: usize = (MAX_LAYERS / 2 + 1) * MAX_LAYERS.div_ceil(2);
+
 /// A point of field space (only the first `n` entries are used).
 pub type FieldVec = [f64; MAX_LAYERS];
 
@@ -81,6 +84,8 @@ pub struct Piece {
     pub normal: FieldVec,
     /// The `n - 1` unit inequality rows (eq. 4 in suffix form).
     pub rows: Vec<FieldVec>,
+    /// Generators of the polar cone: `normal` (free), then `-rows[k]` (coefficient ≥ 0).
+    polar: Vec<FieldVec>,
 }
 
 /// Unit vector along `Σ_{j=a..=b} w_j e_j`; with `w_0 = ∞` and `a = 0`, the limit `e_0`.
@@ -137,11 +142,16 @@ impl Piece {
         for s in hi + 1..n {
             rows.push(run_sum(w, hi + 1, s, -1.0)); // D: -S(hi+1, s) ≥ 0
         }
+        let normal = run_sum(w, lo, hi, 1.0);
+        let polar = std::iter::once(normal)
+            .chain(rows.iter().map(|r| r.map(|x| -x)))
+            .collect();
         Piece {
             lo,
             hi,
-            normal: run_sum(w, lo, hi, 1.0),
+            normal,
             rows,
+            polar,
         }
     }
 
@@ -154,15 +164,7 @@ impl Piece {
     /// polar cone, see the module docs).
     pub fn closest_point(&self, x: &FieldVec, n: usize) -> (FieldVec, f64) {
         // Generators of the polar cone: g_0 = normal (free), g_k = -rows[k-1] (coefficient ≥ 0).
-        let m = n;
-        let mut gens = [[0.0; MAX_LAYERS]; MAX_LAYERS];
-        gens[0] = self.normal;
-        for (k, r) in self.rows.iter().enumerate() {
-            for j in 0..n {
-                gens[k + 1][j] = -r[j];
-            }
-        }
-        let polar = nnls_free_first(&gens[..m], x, n);
+        let polar = nnls_free_first(&self.polar, x, n);
         let mut p = [0.0; MAX_LAYERS];
         let mut d2 = 0.0;
         for j in 0..n {
@@ -185,34 +187,56 @@ fn dot(a: &FieldVec, b: &FieldVec, n: usize) -> f64 {
 /// Least squares `min ‖x − Σ_{k∈set} s_k g_k‖` by modified Gram–Schmidt with one
 /// re-orthogonalisation pass; returns the coefficients (indexed like `gens`).
 fn least_squares(gens: &[FieldVec], set: &[usize], x: &FieldVec, n: usize) -> FieldVec {
+    // Work arrays sized for the common small stacks (the arithmetic is the same).
+    if n <= 8 && set.len() <= 8 {
+        least_squares_in::<8>(gens, set, x, n)
+    } else {
+        least_squares_in::<MAX_LAYERS>(gens, set, x, n)
+    }
+}
+
+/// [`least_squares`] with `N × N` work arrays (`n ≤ N`, `set.len() ≤ N`).
+fn least_squares_in<const N: usize>(
+    gens: &[FieldVec],
+    set: &[usize],
+    x: &FieldVec,
+    n: usize,
+) -> FieldVec {
+    let dot = |a: &[f64], b: &[f64]| {
+        let mut s = 0.0;
+        for j in 0..n {
+            s += a[j] * b[j];
+        }
+        s
+    };
     let q_len = set.len();
-    let mut q = [[0.0; MAX_LAYERS]; MAX_LAYERS];
-    let mut r = [[0.0; MAX_LAYERS]; MAX_LAYERS];
+    let mut q = [[0.0; N]; N];
+    let mut r = [[0.0; N]; N];
     for (c, &k) in set.iter().enumerate() {
         let mut v = gens[k];
         for _pass in 0..2 {
             for prev in 0..c {
-                let d = dot(&q[prev], &v, n);
+                let d = dot(&q[prev], &v);
                 r[prev][c] += d;
                 for j in 0..n {
                     v[j] -= d * q[prev][j];
                 }
             }
         }
-        let nrm = dot(&v, &v, n).sqrt();
+        let nrm = dot(&v, &v).sqrt();
         r[c][c] = nrm;
         if nrm > 0.0 {
             for j in 0..n {
                 v[j] /= nrm;
             }
         }
-        q[c] = v;
+        q[c].copy_from_slice(&v[..N]);
     }
-    let mut qtx = [0.0; MAX_LAYERS];
+    let mut qtx = [0.0; N];
     for c in 0..q_len {
-        qtx[c] = dot(&q[c], x, n);
+        qtx[c] = dot(&q[c], x);
     }
-    let mut s = [0.0; MAX_LAYERS];
+    let mut s = [0.0; N];
     for c in (0..q_len).rev() {
         let mut acc = qtx[c];
         for d in c + 1..q_len {
@@ -376,15 +400,23 @@ impl Operator {
     /// `O_i(x)` and its gradient (eq. 10, 11); `x` has `n` meaningful entries.
     pub fn evaluate(&self, x: &FieldVec) -> Evaluation {
         let n = self.n;
-        let mut order = [(0.0f64, 0usize); MAX_LAYERS * MAX_LAYERS];
+        // Pieces by increasing lower bound on their distance (ties by index).
+        let mut bounds = [0.0f64; MAX_PIECES];
+        let mut order = [0u8; MAX_PIECES];
         let np = self.pieces.len();
         for (k, p) in self.pieces.iter().enumerate() {
-            order[k] = (dot(&p.normal, x, n).abs(), k);
+            bounds[k] = dot(&p.normal, x, n).abs();
+            order[k] = k as u8;
         }
         let order = &mut order[..np];
-        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        order.sort_unstable_by(|&a, &b| {
+            bounds[a as usize]
+                .total_cmp(&bounds[b as usize])
+                .then(a.cmp(&b))
+        });
         let mut best = (f64::INFINITY, 0usize, [0.0; MAX_LAYERS]);
-        for &(bound, k) in order.iter() {
+        for &k in order.iter() {
+            let (bound, k) = (bounds[k as usize], k as usize);
             if bound * bound > best.0 {
                 break;
             }
@@ -968,6 +1000,44 @@ mod tests {
         assert_eq!(e.run, (0, 1));
         assert!((e.value + 0.2).abs() < 1e-15);
         assert_eq!(&e.gradient[..2], &[1.0, 0.0]);
+    }
+
+    #[test]
+    fn max_pieces_bounds_every_operator_tightly() {
+        // Brute force over every stack size and layer: the work arrays of `evaluate` fit.
+        let mut most = 0;
+        for n in 1..=MAX_LAYERS {
+            for i in 0..n {
+                let op = Operator::new(&vec![1.0; n], i).unwrap();
+                assert!(op.pieces.len() <= MAX_PIECES, "n {n} i {i}");
+                most = most.max(op.pieces.len());
+            }
+        }
+        assert_eq!(most, MAX_PIECES);
+    }
+
+    proptest! {
+        #[test]
+        fn small_least_squares_equals_the_full_size_one(
+            seed in any::<u64>(), n in 1usize..=8, drop in 0usize..8,
+        ) {
+            // The 8 x 8 work arrays give bit for bit the result of the 16 x 16 ones.
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut gens = vec![[0.0; MAX_LAYERS]; n];
+            for g in &mut gens {
+                for x in g.iter_mut().take(n) {
+                    *x = rng.random_range(-1.0..1.0);
+                }
+            }
+            let mut x = [0.0; MAX_LAYERS];
+            for v in x.iter_mut().take(n) {
+                *v = rng.random_range(-2.0..2.0);
+            }
+            let set: Vec<usize> = (0..n).filter(|&k| k == 0 || k != drop).collect();
+            let a = least_squares_in::<8>(&gens, &set, &x, n);
+            let b = least_squares_in::<MAX_LAYERS>(&gens, &set, &x, n);
+            prop_assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits));
+        }
     }
 
     #[test]

@@ -460,6 +460,17 @@ pub fn project_from(
     let mut moved = vec![false; nv];
     let mut zone = vec![false; nv];
     let mut zone_list: Vec<usize> = Vec::new();
+    // Pass (plus one) in which a vertex last joined the ball around the newly moved vertices.
+    let mut ball_mark = vec![0usize; nv];
+    // Pass (plus one) in which a triangle was last listed by `guard_flips`.
+    let mut tri_mark = vec![
+        0usize;
+        if params.prevent_flips {
+            triangles.len()
+        } else {
+            0
+        }
+    ];
     let mut run = vec![(i, i); nv];
     let mut active = vec![0u32; nv];
     let mut residual = vec![0.0; nv];
@@ -484,13 +495,17 @@ pub fn project_from(
     };
     let mut since: Vec<usize> = Vec::new();
     let mut in_since = vec![false; if guard.is_some() { nv } else { 0 }];
+    // Vertices are evaluated along a Morton curve of their start positions, so that
+    // consecutive evaluations read nearby grid cells (each vertex's step depends only on its
+    // own state: any order gives the same result).
+    let visit = morton_order(start);
     for it in 0..params.max_iterations.max(1) {
         iterations = it + 1;
 
         let needed = |v: usize| movable(v) && (!evaluated[v] || zone[v]);
         let todo: Vec<usize> = if params.active_set {
             let mut todo = Vec::new();
-            for v in 0..nv {
+            for &v in &visit {
                 if !needed(v) {
                     continue;
                 }
@@ -504,7 +519,7 @@ pub fn project_from(
             }
             todo
         } else {
-            (0..nv).filter(|&v| needed(v)).collect()
+            visit.iter().copied().filter(|&v| needed(v)).collect()
         };
         evaluations += todo.len();
         let step: Vec<(usize, Option<Step>)> = todo
@@ -571,29 +586,32 @@ pub fn project_from(
         }
         // The zone: moved vertices, dilated (`moved` only grows, so the zone grows by the
         // dilation of the newly moved vertices).
-        // Ball of `zone_rings` rings around them.
-        let mut ball = newly;
-        let mut frontier = ball.clone();
-        for _ in 0..params.zone_rings {
-            let mut ring: Vec<usize> = frontier
-                .iter()
-                .flat_map(|&v| topo.vertex_neighbors.row(v).iter().map(|&u| u as usize))
-                .collect();
-            ring.sort_unstable();
-            ring.dedup();
-            ball.extend_from_slice(&ring);
-            frontier = ring;
+        // Ball of `zone_rings` rings around them (breadth-first, each vertex once per pass).
+        for &v in &newly {
+            ball_mark[v] = it + 1;
         }
-        let mut grew = false;
+        let mut ball = newly;
+        let mut from = 0;
+        for _ in 0..params.zone_rings {
+            let to = ball.len();
+            for k in from..to {
+                for &u in topo.vertex_neighbors.row(ball[k]) {
+                    let u = u as usize;
+                    if ball_mark[u] != it + 1 {
+                        ball_mark[u] = it + 1;
+                        ball.push(u);
+                    }
+                }
+            }
+            from = to;
+        }
+        // The zone in the order its vertices joined it (the relaxation of a vertex does not
+        // depend on the others' order).
         for v in ball {
             if !zone[v] {
                 zone[v] = true;
                 zone_list.push(v);
-                grew = true;
             }
-        }
-        if grew {
-            zone_list.sort_unstable();
         }
         progress(it + 1);
         let mut relaxed = 0.0f64;
@@ -616,10 +634,15 @@ pub fn project_from(
             }
         }
         if params.prevent_flips {
-            changed.sort_unstable();
-            changed.dedup();
             guard_flips(
-                &before, &mut pos, &normal, triangles, &oriented, topo, &changed,
+                &before,
+                &mut pos,
+                &normal,
+                triangles,
+                &oriented,
+                topo,
+                &changed,
+                (&mut tri_mark, it + 1),
             );
         }
         let mut stop = !any && relaxed <= params.tolerance;
@@ -664,6 +687,37 @@ pub fn project_from(
     }
 }
 
+/// The vertex indices of `pos` sorted along a Morton (Z-order) curve over their bounding box
+/// (ties by index).
+fn morton_order(pos: &[Vec3]) -> Vec<usize> {
+    let Some(first) = pos.first() else {
+        return Vec::new();
+    };
+    let (lo, hi) = pos
+        .iter()
+        .fold((*first, *first), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+    let ext = hi - lo;
+    let max = ((1u64 << 21) - 1) as f64;
+    let q = |v: f64, e: f64| {
+        if e > 0.0 {
+            ((v / e * max) as u64).min((1 << 21) - 1)
+        } else {
+            0
+        }
+    };
+    let mut keyed: Vec<(u64, usize)> = pos
+        .iter()
+        .enumerate()
+        .map(|(v, p)| {
+            let c = p - lo;
+            let key = crate::broad::bvh::morton3(q(c.x, ext.x), q(c.y, ext.y), q(c.z, ext.z));
+            (key, v)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, v)| v).collect()
+}
+
 /// `((b − a) × (c − a)) · (n_a + n_b + n_c)` of triangle `t`.
 #[inline]
 fn orientation(t: &[u32; 3], pos: &[Vec3], normal: &[Vec3]) -> f64 {
@@ -677,6 +731,9 @@ fn orientation(t: &[u32; 3], pos: &[Vec3], normal: &[Vec3]) -> f64 {
 /// against the field normals at the start and no longer is (the moves would fold the mesh over
 /// itself: on a surface, a mesh without inverted triangles does not overlap itself locally).
 /// Repeats until no such triangle has a vertex that moved; returns the reverted vertices.
+/// `changed` may list a vertex more than once; `mark` (one entry per triangle, none equal to
+/// `stamp`) lists each triangle once.
+#[allow(clippy::too_many_arguments)]
 fn guard_flips(
     before: &[Vec3],
     pos: &mut [Vec3],
@@ -685,15 +742,21 @@ fn guard_flips(
     oriented: &[bool],
     topo: &Topology,
     changed: &[usize],
+    (mark, stamp): (&mut [usize], usize),
 ) -> Vec<usize> {
     let mut reverted = Vec::new();
-    // Only the triangles of the vertices that moved can have flipped.
-    let mut cand: Vec<usize> = changed
-        .iter()
-        .flat_map(|&v| topo.vertex_triangles.row(v).iter().map(|&t| t as usize))
-        .collect();
-    cand.sort_unstable();
-    cand.dedup();
+    // Only the triangles of the vertices that moved can have flipped (each listed once; the
+    // outcome does not depend on their order).
+    let mut cand: Vec<usize> = Vec::new();
+    for &v in changed {
+        for &t in topo.vertex_triangles.row(v) {
+            let t = t as usize;
+            if mark[t] != stamp {
+                mark[t] = stamp;
+                cand.push(t);
+            }
+        }
+    }
     loop {
         let bad: Vec<usize> = cand
             .par_iter()

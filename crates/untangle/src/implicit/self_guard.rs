@@ -51,7 +51,15 @@ pub(crate) fn may_intersect(ta: [u32; 3], tb: [u32; 3], pos: &[Vec3]) -> bool {
         return triangles_may_intersect(&pa, &pb);
     }
     let opposite_may_cross = |t: [u32; 3], p: [Vec3; 3], q: [Vec3; 3], other: [u32; 3]| {
-        let e: Vec<usize> = (0..3).filter(|&k| !other.contains(&t[k])).collect();
+        // The two vertices of `t` not shared with `other` (one vertex is shared).
+        let mut e = [0usize; 2];
+        let mut m = 0;
+        for k in 0..3 {
+            if !other.contains(&t[k]) {
+                e[m] = k;
+                m += 1;
+            }
+        }
         let s0 = certain_orient(&q[0], &q[1], &q[2], &p[e[0]]);
         let s1 = certain_orient(&q[0], &q[1], &q[2], &p[e[1]]);
         !(s0 != 0 && s0 == s1)
