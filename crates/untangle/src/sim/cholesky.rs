@@ -134,6 +134,24 @@ impl Layout {
     /// at a time subtracted from the block's columns, then the triangle. Every factor value is
     /// read once per substitution for all three coordinates.
     fn solve(&self, l: &[f32], x: &mut [[f32; 4]]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU has AVX (checked above).
+            return unsafe { self.solve_avx(l, x) };
+        }
+        self.solve_lanes(l, x);
+    }
+
+    /// [`Layout::solve`] compiled for AVX (VEX encodings, broadcasts from memory): the same
+    /// operations in the same order, so the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn solve_avx(&self, l: &[f32], x: &mut [[f32; 4]]) {
+        self.solve_lanes(l, x);
+    }
+
+    #[inline(always)]
+    fn solve_lanes(&self, l: &[f32], x: &mut [[f32; 4]]) {
         assert_eq!(x.len(), self.fwd.len(), "one row per matrix row");
         assert!(
             self.nodes
