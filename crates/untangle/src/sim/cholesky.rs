@@ -6,10 +6,15 @@
 //! The symbolic analysis (approximate-minimum-degree ordering, supernodal structure) is done
 //! once per sparsity pattern by the `faer` crate; numeric refactorisations (new rest shape, new
 //! pin set) reuse it. `faer` is built without its `rayon` feature: the factorisation and each
-//! solve run sequentially; a three-column solve is the `x` column and the `y, z` pair side by
-//! side, always split the same way, so results are bit-identical for any thread count. (A subtree-parallel substitution of
-//! our own, three coordinates interleaved, was tried on branch sim7 and was not faster: the
-//! solve is bound by reading the factor; BENCHMARKS.md.)
+//! double-precision solve run sequentially; a three-column solve is the `x` column and the
+//! `y, z` pair side by side, always split the same way, so results are bit-identical for any
+//! thread count. The single-precision solve of the projective global step's increments
+//! ([`ScalarCholesky::solve_increment_with`]) is our own sequential substitution on faer's
+//! supernodal layout, the three coordinates as the lanes of one pass over the factor, each
+//! supernode's rows below the diagonal block four at a time (faer's solve of one or two
+//! columns spends most of its instructions outside the arithmetic at this size; branch sim9,
+//! BENCHMARKS.md). (A subtree-parallel substitution of our own in double precision, one row at
+//! a time, was tried on branch sim7 and was not faster than faer's.)
 //!
 //! Pinned (fixed) nodes are eliminated: their rows and columns are replaced by the diagonal, so
 //! that `S (B^-1 (x) I3) S` with the filter projection `S` is the exact inverse of the filtered
@@ -19,7 +24,7 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
+    SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
@@ -33,6 +38,10 @@ use crate::geom::Vec3;
 /// Scratch of a solve: faer stacks for the `x` column and the `y, z` pair, and the `n x 3`
 /// column-major right-hand-side buffer.
 type SolveScratch = (MemBuffer, MemBuffer, Vec<f64>);
+
+/// Scratch of the own single-precision solve: the right-hand sides in the original row order
+/// and the permuted iterate, four lanes per row.
+type LaneScratch = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
 /// The symbolic analysis of one node pattern plus the numeric factor of the last matrix given
 /// to [`ScalarCholesky::factor`].
@@ -52,8 +61,298 @@ pub struct ScalarCholesky {
     scratch: MemBuffer,
     /// Scratch of the solves: faer's stack and the right-hand sides column by column.
     solve_scratch: std::sync::Mutex<SolveScratch>,
-    /// The same for the single-precision solves.
+    /// The same for the single-precision solves through faer (simplicial factors).
     solve_scratch32: std::sync::Mutex<(MemBuffer, MemBuffer, Vec<f32>)>,
+    /// The supernodal layout of the factor for [`ScalarCholesky::solve_increment_with`]'s own
+    /// solve (`None` for a simplicial factor, which faer solves).
+    layout: Option<Layout>,
+    /// Scratch of the own solve: the right-hand sides in the original order and the
+    /// permuted iterate, four lanes (`x`, `y`, `z`, unused) per row.
+    lanes: std::sync::Mutex<LaneScratch>,
+}
+
+/// One supernode of faer's supernodal factor: columns `start..start + size` of the permuted
+/// matrix, stored column-major from `values[val..]` with `size + m` rows per column (the
+/// diagonal block, whose lower triangle holds `L`, then the rows `rows[pat..pat + m]`).
+#[derive(Clone, Copy, Debug)]
+struct Supernode {
+    start: usize,
+    size: usize,
+    val: usize,
+    pat: usize,
+    m: usize,
+}
+
+/// faer's supernodal structure in plain arrays, with the fill-reducing permutation.
+#[derive(Debug)]
+struct Layout {
+    nodes: Vec<Supernode>,
+    rows: Vec<u32>,
+    /// Row `i` of the permuted system is row `fwd[i]` of the original one.
+    fwd: Vec<u32>,
+}
+
+impl Layout {
+    fn new(symbolic: &SymbolicCholesky<usize>, n: usize) -> Option<Layout> {
+        let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+            return None;
+        };
+        let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
+        let (row_ptr, val_ptr) = (sn.col_ptr_for_row_idx(), sn.col_ptr_for_val());
+        let mut nodes = Vec::with_capacity(sn.n_supernodes());
+        for s in 0..sn.n_supernodes() {
+            let size = end[s] - begin[s];
+            let len = val_ptr[s + 1] - val_ptr[s];
+            // The block is (size + m) x size.
+            let m = (len / size.max(1)).checked_sub(size)?;
+            if size == 0 || len != (size + m) * size || row_ptr[s] + m > sn.row_idx().len() {
+                return None;
+            }
+            nodes.push(Supernode {
+                start: begin[s],
+                size,
+                val: val_ptr[s],
+                pat: row_ptr[s],
+                m,
+            });
+        }
+        if nodes.iter().any(|s| s.start + s.size > n) || sn.row_idx().iter().any(|&r| r >= n) {
+            return None;
+        }
+        let rows = sn.row_idx().iter().map(|&r| r as u32).collect();
+        let fwd = match symbolic.perm() {
+            Some(p) => p.arrays().0.iter().map(|&i| i as u32).collect(),
+            None => (0..n as u32).collect(),
+        };
+        Some(Layout { nodes, rows, fwd })
+    }
+
+    /// Solves `L L^T x = b` in place for the permuted right-hand sides `x` (four lanes per row:
+    /// the coordinates) with the factor values `l`. Per supernode, forward: the dense triangle
+    /// of the diagonal block, then the rows below four at a time, each row's update summed over
+    /// the block's columns before it is subtracted; backward, in reverse: the rows below four
+    /// at a time subtracted from the block's columns, then the triangle. Every factor value is
+    /// read once per substitution for all three coordinates.
+    fn solve(&self, l: &[f32], x: &mut [[f32; 4]]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU has AVX (checked above).
+            return unsafe { self.solve_avx(l, x) };
+        }
+        self.solve_lanes(l, x);
+    }
+
+    /// [`Layout::solve`] compiled for AVX (VEX encodings, broadcasts from memory): the same
+    /// operations in the same order, so the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn solve_avx(&self, l: &[f32], x: &mut [[f32; 4]]) {
+        self.solve_lanes(l, x);
+    }
+
+    #[inline(always)]
+    fn solve_lanes(&self, l: &[f32], x: &mut [[f32; 4]]) {
+        assert_eq!(x.len(), self.fwd.len(), "one row per matrix row");
+        assert!(
+            self.nodes
+                .last()
+                .is_none_or(|s| s.val + (s.size + s.m) * s.size <= l.len()),
+            "factor values of the layout"
+        );
+        let rows = &self.rows;
+        let xp = x.as_mut_ptr();
+        // SAFETY (all accesses through `xp` below): `Layout::new` checked that every row index
+        // in `rows` and every column `start..start + size` is below `n = x.len()`.
+        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
+        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
+        for s in &self.nodes {
+            let (ld, size, start, m) = (s.size + s.m, s.size, s.start, s.m);
+            let block = &l[s.val..s.val + ld * size];
+            let pat = &rows[s.pat..s.pat + m];
+            // SAFETY (all reads through `w`): the indices are `c * ld + r` with `c < size` and
+            // `r < ld`, inside `block`.
+            let bp = block.as_ptr();
+            let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
+            for c in 0..size {
+                let xc = at(start + c).div(w(c, c));
+                put(start + c, xc);
+                for r in c + 1..size {
+                    put(start + r, at(start + r).sub_scaled(w(c, r), xc));
+                }
+            }
+            let mut q = 0;
+            while q + 4 <= m {
+                let mut acc = [Lane::zero(); 4];
+                for c in 0..size {
+                    let xc = at(start + c);
+                    for (k, a) in acc.iter_mut().enumerate() {
+                        *a = a.add_scaled(w(c, size + q + k), xc);
+                    }
+                }
+                for (k, a) in acc.iter().enumerate() {
+                    let i = pat[q + k] as usize;
+                    put(i, at(i).sub(*a));
+                }
+                q += 4;
+            }
+            for q in q..m {
+                let mut acc = Lane::zero();
+                for c in 0..size {
+                    acc = acc.add_scaled(w(c, size + q), at(start + c));
+                }
+                let i = pat[q] as usize;
+                put(i, at(i).sub(acc));
+            }
+        }
+        for s in self.nodes.iter().rev() {
+            let (ld, size, start, m) = (s.size + s.m, s.size, s.start, s.m);
+            let block = &l[s.val..s.val + ld * size];
+            let pat = &rows[s.pat..s.pat + m];
+            // SAFETY: as in the forward substitution.
+            let bp = block.as_ptr();
+            let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
+            let mut q = 0;
+            while q + 4 <= m {
+                let xr = [0, 1, 2, 3].map(|k| at(pat[q + k] as usize));
+                for c in 0..size {
+                    let r = size + q;
+                    let sum = xr[0]
+                        .scaled(w(c, r))
+                        .add(xr[1].scaled(w(c, r + 1)))
+                        .add(xr[2].scaled(w(c, r + 2)).add(xr[3].scaled(w(c, r + 3))));
+                    put(start + c, at(start + c).sub(sum));
+                }
+                q += 4;
+            }
+            for q in q..m {
+                let xr = at(pat[q] as usize);
+                for c in 0..size {
+                    put(start + c, at(start + c).sub_scaled(w(c, size + q), xr));
+                }
+            }
+            for c in (0..size).rev() {
+                let mut xc = at(start + c);
+                for r in c + 1..size {
+                    xc = xc.sub_scaled(w(c, r), at(start + r));
+                }
+                put(start + c, xc.div(w(c, c)));
+            }
+        }
+    }
+}
+
+/// Four single-precision lanes (one row's `x`, `y`, `z` and an unused lane): SSE on x86_64,
+/// plain arrays elsewhere; the same operations lane by lane either way.
+#[derive(Clone, Copy)]
+struct Lane(
+    #[cfg(target_arch = "x86_64")] std::arch::x86_64::__m128,
+    #[cfg(not(target_arch = "x86_64"))] [f32; 4],
+);
+
+#[cfg(target_arch = "x86_64")]
+impl Lane {
+    #[inline(always)]
+    fn zero() -> Lane {
+        // SAFETY: SSE is part of the x86_64 baseline.
+        Lane(unsafe { std::arch::x86_64::_mm_setzero_ps() })
+    }
+    /// # Safety
+    /// `p` points to four readable `f32`.
+    #[inline(always)]
+    unsafe fn load(p: *const [f32; 4]) -> Lane {
+        // SAFETY: the caller's.
+        Lane(unsafe { std::arch::x86_64::_mm_loadu_ps(p as *const f32) })
+    }
+    /// # Safety
+    /// `p` points to four writable `f32`.
+    #[inline(always)]
+    unsafe fn store(self, p: *mut [f32; 4]) {
+        // SAFETY: the caller's.
+        unsafe { std::arch::x86_64::_mm_storeu_ps(p as *mut f32, self.0) }
+    }
+    /// `self - w b`.
+    #[inline(always)]
+    fn sub_scaled(self, w: f32, b: Lane) -> Lane {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE is part of the x86_64 baseline.
+        Lane(unsafe { _mm_sub_ps(self.0, _mm_mul_ps(_mm_set1_ps(w), b.0)) })
+    }
+    /// `w self`.
+    #[inline(always)]
+    fn scaled(self, w: f32) -> Lane {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE is part of the x86_64 baseline.
+        Lane(unsafe { _mm_mul_ps(_mm_set1_ps(w), self.0) })
+    }
+    /// `self + w b`.
+    #[inline(always)]
+    fn add_scaled(self, w: f32, b: Lane) -> Lane {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE is part of the x86_64 baseline.
+        Lane(unsafe { _mm_add_ps(self.0, _mm_mul_ps(_mm_set1_ps(w), b.0)) })
+    }
+    #[inline(always)]
+    fn add(self, b: Lane) -> Lane {
+        // SAFETY: SSE is part of the x86_64 baseline.
+        Lane(unsafe { std::arch::x86_64::_mm_add_ps(self.0, b.0) })
+    }
+    #[inline(always)]
+    fn sub(self, b: Lane) -> Lane {
+        // SAFETY: SSE is part of the x86_64 baseline.
+        Lane(unsafe { std::arch::x86_64::_mm_sub_ps(self.0, b.0) })
+    }
+    #[inline(always)]
+    fn div(self, d: f32) -> Lane {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE is part of the x86_64 baseline.
+        Lane(unsafe { _mm_div_ps(self.0, _mm_set1_ps(d)) })
+    }
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+impl Lane {
+    #[inline(always)]
+    fn zero() -> Lane {
+        Lane([0.0; 4])
+    }
+    /// # Safety
+    /// `p` points to four readable `f32`.
+    #[inline(always)]
+    unsafe fn load(p: *const [f32; 4]) -> Lane {
+        // SAFETY: the caller's.
+        Lane(unsafe { *p })
+    }
+    /// # Safety
+    /// `p` points to four writable `f32`.
+    #[inline(always)]
+    unsafe fn store(self, p: *mut [f32; 4]) {
+        // SAFETY: the caller's.
+        unsafe { *p = self.0 }
+    }
+    #[inline(always)]
+    fn sub_scaled(self, w: f32, b: Lane) -> Lane {
+        Lane(std::array::from_fn(|k| self.0[k] - w * b.0[k]))
+    }
+    #[inline(always)]
+    fn scaled(self, w: f32) -> Lane {
+        Lane(std::array::from_fn(|k| w * self.0[k]))
+    }
+    #[inline(always)]
+    fn add_scaled(self, w: f32, b: Lane) -> Lane {
+        Lane(std::array::from_fn(|k| self.0[k] + w * b.0[k]))
+    }
+    #[inline(always)]
+    fn add(self, b: Lane) -> Lane {
+        Lane(std::array::from_fn(|k| self.0[k] + b.0[k]))
+    }
+    #[inline(always)]
+    fn sub(self, b: Lane) -> Lane {
+        Lane(std::array::from_fn(|k| self.0[k] - b.0[k]))
+    }
+    #[inline(always)]
+    fn div(self, d: f32) -> Lane {
+        Lane(std::array::from_fn(|k| self.0[k] / d))
+    }
 }
 
 impl std::fmt::Debug for ScalarCholesky {
@@ -118,7 +417,10 @@ impl ScalarCholesky {
             MemBuffer::try_new(symbolic.solve_in_place_scratch::<f32>(2, Par::Seq)).ok()?,
             Vec::new(),
         );
+        let layout = Layout::new(&symbolic, n);
         Some(ScalarCholesky {
+            layout,
+            lanes: std::sync::Mutex::new((Vec::new(), Vec::new())),
             n,
             values: vec![0.0; row_idx.len()],
             factor: vec![0.0; symbolic.len_val()],
@@ -224,7 +526,8 @@ impl ScalarCholesky {
     /// `dx = B^-1 r` of an iteration that recomputes its residual `r` in double precision, so
     /// the rounding (relative ~1e-7 times the condition number, of the increment only) does not
     /// accumulate: the iteration's fixed point is the double-precision one. Reads half the
-    /// bytes of the factor.
+    /// bytes of the factor. A supernodal factor is solved by our own substitution
+    /// (module docs, the same for any thread count), a simplicial one by faer.
     pub fn solve_increment_with<F>(&self, rhs: F, out: &mut [Vec3])
     where
         F: Fn(usize) -> Vec3 + Sync,
@@ -233,6 +536,29 @@ impl ScalarCholesky {
             return;
         }
         let n = self.n;
+        if let Some(layout) = &self.layout {
+            // Our own supernodal substitutions on faer's factor layout, the three coordinates
+            // as lanes of one pass over the factor (faer's solve per column group spends most
+            // of its time outside the arithmetic at this size).
+            let mut guard = self.lanes.lock().unwrap_or_else(|e| e.into_inner());
+            let (b, x) = &mut *guard;
+            b.resize(n, [0.0; 4]);
+            x.resize(n, [0.0; 4]);
+            b.par_chunks_mut(RHS_CHUNK).enumerate().for_each(|(c, bs)| {
+                for (k, o) in bs.iter_mut().enumerate() {
+                    let v = rhs(c * RHS_CHUNK + k);
+                    *o = [v.x as f32, v.y as f32, v.z as f32, 0.0];
+                }
+            });
+            for (xi, &f) in x.iter_mut().zip(&layout.fwd) {
+                *xi = b[f as usize];
+            }
+            layout.solve(&self.factor32, x);
+            for (xi, &f) in x.iter().zip(&layout.fwd) {
+                out[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
+            }
+            return;
+        }
         let mut guard = self
             .solve_scratch32
             .lock()
@@ -455,6 +781,79 @@ mod tests {
                     for i in 0..n {
                         prop_assert!((want[i] - x[i][c]).abs() <= 1e-9 * (1.0 + want[i].abs()));
                     }
+                }
+            }
+        }
+    }
+
+    proptest! {
+        /// The own single-precision supernodal solve on grid-graph matrices (wide supernodes,
+        /// row counts not multiples of four) against a dense nalgebra solve in double precision:
+        /// within single-precision rounding times the (small) condition number.
+        #[test]
+        fn single_precision_supernodal_solve_matches_dense_lu(seed in 0u64..1000, w in 3usize..14, h in 3usize..14) {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let n = w * h;
+            let id = |x: usize, y: usize| (y * w + x) as u32;
+            let mut pairs = Vec::new();
+            for y in 0..h {
+                for x in 0..w {
+                    for (dx, dy) in [(1, 0), (0, 1), (1, 1)] {
+                        if x + dx < w && y + dy < h {
+                            pairs.push((id(x, y), id(x + dx, y + dy)));
+                            pairs.push((id(x + dx, y + dy), id(x, y)));
+                        }
+                    }
+                }
+            }
+            let pattern = BsrPattern::from_pairs(n, pairs);
+            let mut dense = DMatrix::<f64>::zeros(n, n);
+            for i in 0..n {
+                for s in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
+                    let j = pattern.cols[s] as usize;
+                    if j < i {
+                        let v: f64 = rng.random_range(-1.0..0.0);
+                        dense[(i, j)] = v;
+                        dense[(j, i)] = v;
+                    }
+                }
+            }
+            let fixed: Vec<bool> = (0..n).map(|_| rng.random_bool(0.1)).collect();
+            for i in 0..n {
+                let row: f64 = (0..n).map(|j| dense[(i, j)].abs()).sum();
+                dense[(i, i)] = row + rng.random_range(0.1..1.0);
+            }
+            let mut values = vec![0.0; pattern.nnz()];
+            for i in 0..n {
+                for s in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
+                    values[s] = dense[(i, pattern.cols[s] as usize)];
+                }
+            }
+            for i in 0..n {
+                for j in 0..n {
+                    if i != j && (fixed[i] || fixed[j]) { dense[(i, j)] = 0.0; }
+                }
+            }
+            let r: Vec<Vec3> = (0..n)
+                .map(|_| Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
+                .collect();
+            let mut chol = ScalarCholesky::with_threshold(&pattern, SupernodalThreshold::FORCE_SUPERNODAL).unwrap();
+            prop_assert!(chol.layout.is_some());
+            prop_assert!(chol.factor(&pattern, &values, &fixed));
+            let mut z = vec![Vec3::zeros(); n];
+            chol.solve_increment_with(|i| r[i], &mut z);
+            let lu = dense.clone().lu();
+            let cond = {
+                let e = dense.symmetric_eigenvalues();
+                e.max() / e.min()
+            };
+            for c in 0..3 {
+                let b = nalgebra::DVector::from_iterator(n, r.iter().map(|v| v[c]));
+                let want = lu.solve(&b).unwrap();
+                let scale = want.amax();
+                for i in 0..n {
+                    prop_assert!((want[i] - z[i][c]).abs() <= 1e-6 * cond * scale,
+                        "row {} coordinate {}: {} vs {} (cond {})", i, c, z[i][c], want[i], cond);
                 }
             }
         }
