@@ -712,6 +712,50 @@ mod tests {
     use proptest::prelude::*;
     use rand::{Rng, SeedableRng};
 
+    /// A random symmetric, strictly diagonally dominant matrix on `pattern`: off-diagonal values
+    /// drawn from `off`, each node fixed with probability `p_fixed`, each diagonal entry the
+    /// row's absolute sum plus a draw from `diag`. Returns the dense matrix with the fixed rows
+    /// and columns eliminated (what the factor solves), the pattern's values and the fixed flags.
+    fn random_spd(
+        pattern: &BsrPattern,
+        rng: &mut impl Rng,
+        off: std::ops::Range<f64>,
+        p_fixed: f64,
+        diag: std::ops::Range<f64>,
+    ) -> (DMatrix<f64>, Vec<f64>, Vec<bool>) {
+        let n = pattern.offsets.len() - 1;
+        let mut dense = DMatrix::<f64>::zeros(n, n);
+        for i in 0..n {
+            for s in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
+                let j = pattern.cols[s] as usize;
+                if j < i {
+                    let v: f64 = rng.random_range(off.clone());
+                    dense[(i, j)] = v;
+                    dense[(j, i)] = v;
+                }
+            }
+        }
+        let fixed: Vec<bool> = (0..n).map(|_| rng.random_bool(p_fixed)).collect();
+        for i in 0..n {
+            let row: f64 = (0..n).map(|j| dense[(i, j)].abs()).sum();
+            dense[(i, i)] = row + rng.random_range(diag.clone());
+        }
+        let mut values = vec![0.0; pattern.nnz()];
+        for i in 0..n {
+            for s in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
+                values[s] = dense[(i, pattern.cols[s] as usize)];
+            }
+        }
+        for i in 0..n {
+            for j in 0..n {
+                if i != j && (fixed[i] || fixed[j]) {
+                    dense[(i, j)] = 0.0;
+                }
+            }
+        }
+        (dense, values, fixed)
+    }
+
     proptest! {
         /// On random sparse SPD matrices (a random graph, diagonally dominant values) with random
         /// fixed nodes, `solve3` matches a dense nalgebra solve of the same (eliminated) matrix.
@@ -726,33 +770,7 @@ mod tests {
                 }
             }
             let pattern = BsrPattern::from_pairs(n, pairs);
-            let mut dense = DMatrix::<f64>::zeros(n, n);
-            let mut values = vec![0.0; pattern.nnz()];
-            for i in 0..n {
-                for s in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
-                    let j = pattern.cols[s] as usize;
-                    if j < i {
-                        let v: f64 = rng.random_range(-1.0..1.0);
-                        dense[(i, j)] = v;
-                        dense[(j, i)] = v;
-                    }
-                }
-            }
-            let fixed: Vec<bool> = (0..n).map(|_| rng.random_bool(0.2)).collect();
-            for i in 0..n {
-                let row: f64 = (0..n).map(|j| dense[(i, j)].abs()).sum();
-                dense[(i, i)] = row + rng.random_range(0.1..2.0);
-            }
-            for i in 0..n {
-                for s in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
-                    values[s] = dense[(i, pattern.cols[s] as usize)];
-                }
-            }
-            for i in 0..n {
-                for j in 0..n {
-                    if i != j && (fixed[i] || fixed[j]) { dense[(i, j)] = 0.0; }
-                }
-            }
+            let (dense, values, fixed) = random_spd(&pattern, &mut rng, -1.0..1.0, 0.2, 0.1..2.0);
             let r: Vec<Vec3> = (0..n).map(|_| Vec3::new(rng.random(), rng.random(), rng.random())).collect();
             let lu = dense.clone().lu();
             // faer's choice and both layouts forced; `solve3` and `solve_with` agree.
@@ -807,33 +825,7 @@ mod tests {
                 }
             }
             let pattern = BsrPattern::from_pairs(n, pairs);
-            let mut dense = DMatrix::<f64>::zeros(n, n);
-            for i in 0..n {
-                for s in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
-                    let j = pattern.cols[s] as usize;
-                    if j < i {
-                        let v: f64 = rng.random_range(-1.0..0.0);
-                        dense[(i, j)] = v;
-                        dense[(j, i)] = v;
-                    }
-                }
-            }
-            let fixed: Vec<bool> = (0..n).map(|_| rng.random_bool(0.1)).collect();
-            for i in 0..n {
-                let row: f64 = (0..n).map(|j| dense[(i, j)].abs()).sum();
-                dense[(i, i)] = row + rng.random_range(0.1..1.0);
-            }
-            let mut values = vec![0.0; pattern.nnz()];
-            for i in 0..n {
-                for s in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
-                    values[s] = dense[(i, pattern.cols[s] as usize)];
-                }
-            }
-            for i in 0..n {
-                for j in 0..n {
-                    if i != j && (fixed[i] || fixed[j]) { dense[(i, j)] = 0.0; }
-                }
-            }
+            let (dense, values, fixed) = random_spd(&pattern, &mut rng, -1.0..0.0, 0.1, 0.1..1.0);
             let r: Vec<Vec3> = (0..n)
                 .map(|_| Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
                 .collect();
