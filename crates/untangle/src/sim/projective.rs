@@ -465,61 +465,29 @@ impl Projective {
     /// entries of `L` of the changed triangles and stencils, each summed over the same
     /// contributions in the same order as [`Projective::set_rest`] (the same bits).
     pub fn update_rest(&mut self, edit: &super::rest::RestEdit) {
-        let w = self.weights.0 + self.weights.1;
-        let kb = self.elastic.bend;
-        let mut slots: Vec<usize> = Vec::new();
         for (t, r) in &edit.triangles {
             self.rest[*t as usize] = *r;
-            let tri = self.triangles[*t as usize];
-            for i in 0..3 {
-                for j in 0..3 {
-                    slots.push(self.pattern.slot(tri[i], tri[j]).expect("triangle pair"));
-                }
-            }
         }
         for (k, b) in &edit.stencils {
             self.bend[*k as usize] = *b;
-            for i in 0..4 {
-                for j in 0..4 {
-                    slots.push(
-                        self.pattern
-                            .slot(b.vertices[i], b.vertices[j])
-                            .expect("bending pair"),
-                    );
-                }
-            }
         }
+        let mut slots = Vec::new();
+        self.stiffness_terms(
+            edit.triangles.iter().map(|&(t, _)| t as usize),
+            edit.stencils.iter().map(|&(k, _)| k as usize),
+            |k, _| slots.push(k),
+        );
         slots.sort_unstable();
         slots.dedup();
-        for &k in &slots {
-            self.stiff[k] = 0.0;
-        }
-        let changed = |k: usize| slots.binary_search(&k).is_ok();
-        for &t in &edit.near_triangles {
-            let (tri, r) = (self.triangles[t as usize], &self.rest[t as usize]);
-            for i in 0..3 {
-                for j in 0..3 {
-                    let k = self.pattern.slot(tri[i], tri[j]).expect("triangle pair");
-                    if changed(k) {
-                        self.stiff[k] += w * r.area * (r.a[i] * r.a[j] + r.b[i] * r.b[j]);
-                    }
-                }
-            }
-        }
-        for &b in &edit.near_stencils {
-            let s = &self.bend[b as usize];
-            for i in 0..4 {
-                for j in 0..4 {
-                    let k = self
-                        .pattern
-                        .slot(s.vertices[i], s.vertices[j])
-                        .expect("bending pair");
-                    if changed(k) {
-                        self.stiff[k] += kb * s.weights[i] * s.weights[j];
-                    }
-                }
-            }
-        }
+        let mut stiff = std::mem::take(&mut self.stiff);
+        super::rest::resum_slots(&mut stiff, &slots, |add| {
+            self.stiffness_terms(
+                edit.near_triangles.iter().map(|&t| t as usize),
+                edit.near_stencils.iter().map(|&s| s as usize),
+                add,
+            )
+        });
+        self.stiff = stiff;
     }
 
     /// Changes the elastic parameters and rebuilds `L`.
@@ -536,28 +504,35 @@ impl Projective {
 
     fn rebuild_stiffness(&mut self) {
         let mut stiff = vec![0.0; self.pattern.nnz()];
+        self.stiffness_terms(0..self.triangles.len(), 0..self.bend.len(), |k, v| {
+            stiff[k] += v
+        });
+        self.stiff = stiff;
+    }
+
+    /// The terms of `L` (per pattern slot) of the given triangles, then of the given bending
+    /// stencils, in the order given: `w area (a_i a_j + b_i b_j)` per triangle corner pair
+    /// (`w` the sum of the ARAP and column weights) and [`super::rest::bend_terms`].
+    fn stiffness_terms(
+        &self,
+        triangles: impl Iterator<Item = usize>,
+        stencils: impl Iterator<Item = usize>,
+        mut add: impl FnMut(usize, f64),
+    ) {
         let w = self.weights.0 + self.weights.1;
-        for (t, r) in self.triangles.iter().zip(&self.rest) {
+        for t in triangles {
+            let (tri, r) = (&self.triangles[t], &self.rest[t]);
             for i in 0..3 {
                 for j in 0..3 {
-                    let slot = self.pattern.slot(t[i], t[j]).expect("triangle pair");
-                    stiff[slot] += w * r.area * (r.a[i] * r.a[j] + r.b[i] * r.b[j]);
+                    let slot = self.pattern.slot(tri[i], tri[j]).expect("triangle pair");
+                    add(slot, w * r.area * (r.a[i] * r.a[j] + r.b[i] * r.b[j]));
                 }
             }
         }
         let kb = self.elastic.bend;
-        for s in &self.bend {
-            for i in 0..4 {
-                for j in 0..4 {
-                    let slot = self
-                        .pattern
-                        .slot(s.vertices[i], s.vertices[j])
-                        .expect("bending pair");
-                    stiff[slot] += kb * s.weights[i] * s.weights[j];
-                }
-            }
+        for s in stencils {
+            super::rest::bend_terms(&self.pattern, &self.bend[s], kb, &mut add);
         }
-        self.stiff = stiff;
     }
 
     /// The block pattern of the system (node pairs sharing a triangle or a bending stencil).

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 
 use super::forces::bend::BendStencil;
 use super::forces::stretch::TriangleRest;
+use super::sparse::BsrPattern;
 use crate::error::{Error, Result};
 use crate::geom::Vec2;
 use crate::mesh::topology::{Csr, NONE};
@@ -36,11 +37,9 @@ impl RestShape {
         for (i, r) in rest.into_iter().enumerate() {
             tris.push(r.map_err(|e| Error::input(format!("triangle {}", i + 1), e.to_string()))?);
         }
-        let bend = topology
-            .edges
-            .par_iter()
-            .enumerate()
-            .filter_map(|(e, _)| bend_stencil(triangles, uv_triangles, uv, topology, e))
+        let bend = (0..topology.edges.len())
+            .into_par_iter()
+            .filter_map(|e| bend_stencil(triangles, uv_triangles, uv, topology, e))
             .collect();
         Ok(RestShape {
             triangles: tris,
@@ -85,6 +84,40 @@ pub fn bend_stencil(
         return None;
     }
     Some(BendStencil::new([ev[0], ev[1], c0, c1], u0, u1))
+}
+
+/// The bending stencil's terms of the scalar matrix, `kb w_i w_j` for its 16 node pairs in
+/// row-major order (the quadratic bending of [`BendStencil`]): `add(slot, value)` with the slot
+/// of each pair in `pattern`. The full builds and the partial updates of a rest edit both sum
+/// these, in the same order, so they give the same bits.
+pub fn bend_terms(pattern: &BsrPattern, s: &BendStencil, kb: f64, mut add: impl FnMut(usize, f64)) {
+    for i in 0..4 {
+        for j in 0..4 {
+            let slot = pattern
+                .slot(s.vertices[i], s.vertices[j])
+                .expect("bending pairs are in the pattern");
+            add(slot, kb * s.weights[i] * s.weights[j]);
+        }
+    }
+}
+
+/// Re-sums the entries `slots` (sorted, distinct) of `values` from scratch: each is zeroed,
+/// then every term that `terms` passes to its callback for one of these slots is added, in the
+/// order given (terms for other slots are ignored). With the terms of a [`RestEdit`]'s
+/// `near_triangles` / `near_stencils` in ascending order, the result is that of a full rebuild.
+pub fn resum_slots(
+    values: &mut [f64],
+    slots: &[usize],
+    terms: impl FnOnce(&mut dyn FnMut(usize, f64)),
+) {
+    for &k in slots {
+        values[k] = 0.0;
+    }
+    terms(&mut |k, v| {
+        if slots.binary_search(&k).is_ok() {
+            values[k] += v;
+        }
+    });
 }
 
 /// Which rest data a uv edit touches (built once per mesh), so that an edit of a few uv

@@ -28,7 +28,7 @@ use super::policy::Contact;
 use super::policy::ContactPolicy;
 use super::projective::{self, Elastic, Projective, ProjectiveResult, StepProblem};
 use super::report::{Energy, StepReport, StepTiming};
-use super::rest::{RestEdit, RestIndex, RestShape};
+use super::rest::{bend_terms, resum_slots, RestEdit, RestIndex, RestShape};
 use super::sparse::{BsrMatrix, BsrPattern};
 use crate::error::{Error, Result};
 use crate::geom::{Vec2, Vec3};
@@ -415,15 +415,7 @@ impl Simulator {
         let mut base = vec![0.0; self.pattern.nnz()];
         let kb = self.params.bend_stiffness;
         for s in &self.rest.bend {
-            for i in 0..4 {
-                for j in 0..4 {
-                    let slot = self
-                        .pattern
-                        .slot(s.vertices[i], s.vertices[j])
-                        .expect("bending pairs are in the pattern");
-                    base[slot] += kb * s.weights[i] * s.weights[j];
-                }
-            }
+            bend_terms(&self.pattern, s, kb, |k, v| base[k] += v);
         }
         self.bend_base = base;
     }
@@ -480,35 +472,18 @@ impl Simulator {
     /// applied to `self.rest`), summed over the same stencils in the same order.
     fn update_bend_base(&mut self, edit: &RestEdit) {
         let kb = self.params.bend_stiffness;
-        let slot = |a: u32, b: u32| {
-            self.pattern
-                .slot(a, b)
-                .expect("bending pairs are in the pattern")
-        };
-        let mut slots: Vec<usize> = edit
-            .stencils
-            .iter()
-            .flat_map(|(_, b)| (0..16).map(move |k| (b.vertices[k / 4], b.vertices[k % 4])))
-            .map(|(a, b)| slot(a, b))
-            .collect();
+        let mut slots = Vec::new();
+        for (_, b) in &edit.stencils {
+            bend_terms(&self.pattern, b, kb, |k, _| slots.push(k));
+        }
         slots.sort_unstable();
         slots.dedup();
-        let mut base = std::mem::take(&mut self.bend_base);
-        for &k in &slots {
-            base[k] = 0.0;
-        }
-        for &s in &edit.near_stencils {
-            let b = &self.rest.bend[s as usize];
-            for i in 0..4 {
-                for j in 0..4 {
-                    let k = slot(b.vertices[i], b.vertices[j]);
-                    if slots.binary_search(&k).is_ok() {
-                        base[k] += kb * b.weights[i] * b.weights[j];
-                    }
-                }
+        let (pattern, bend) = (&self.pattern, &self.rest.bend);
+        resum_slots(&mut self.bend_base, &slots, |add| {
+            for &s in &edit.near_stencils {
+                bend_terms(pattern, &bend[s as usize], kb, &mut *add);
             }
-        }
-        self.bend_base = base;
+        });
     }
 
     /// The current rest uv.
