@@ -40,8 +40,9 @@ pub struct ResolveParams {
     /// Regionless-tanglement fallback (ours, [`super::regionless`]): after this many steps
     /// without a new lowest count of intersecting pairs while no vertex is red, the corners of
     /// the intersecting triangles of tanglements without a usable region are coloured red, and
-    /// the stall may last `stuck_steps` more steps from then. 0 (the default) turns it off: it
-    /// resolves most CROSS runs but makes some exploded-handkerchief runs stuck.
+    /// the stall may last `stuck_steps` more steps from then. 0 (the default) turns it off: at
+    /// 30 it resolved 6 of 7 CROSS runs, but on `cross` only for values 25-40, and it made 2 of
+    /// 12 exploded-handkerchief runs stuck (docs/cha-ko.md).
     pub regionless_after: usize,
     /// Analysis options. By default BLI paths colour their cone regions red (Wicke's heuristic),
     /// which goes beyond the paper (Cha & Ko leave BLI out): their vertices are then pulled like
