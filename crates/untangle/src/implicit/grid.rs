@@ -102,7 +102,8 @@ impl Grid {
             if !(x >= 0.0 && x <= last) {
                 return None;
             }
-            let i = (x.floor() as usize).min(self.dims[a] - 2);
+            // `x ≥ 0`: truncation is the floor (a call to `floor` without SSE4.1).
+            let i = (x as usize).min(self.dims[a] - 2);
             idx[a] = i;
             t[a] = x - i as f64;
         }
@@ -130,21 +131,25 @@ impl Grid {
             if !(x >= 0.0 && x <= last) {
                 return None;
             }
-            let i = (x.floor() as usize).min(self.dims[a] - 2);
+            // `x ≥ 0`: truncation is the floor (a call to `floor` without SSE4.1).
+            let i = (x as usize).min(self.dims[a] - 2);
             idx[a] = i;
             t[a] = x - i as f64;
         }
         let (nx, ny) = (self.dims[0], self.dims[1]);
         let base = idx[0] + nx * (idx[1] + ny * idx[2]);
+        // The two nodes along x of each of the four (y, z) corners, in one slice each.
+        let (sy, sz) = (nx, nx * ny);
+        let rows = [base, base + sy, base + sz, base + sy + sz].map(|r| &self.data[r..r + 2]);
+        let (u, v) = ([1.0 - t[0], t[0]], [1.0 - t[1], t[1]]);
+        let w = [1.0 - t[2], t[2]];
         let mut acc = [0.0f64; 4];
         for c in 0..8 {
             let (dx, dy, dz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
-            let w = (if dx == 1 { t[0] } else { 1.0 - t[0] })
-                * (if dy == 1 { t[1] } else { 1.0 - t[1] })
-                * (if dz == 1 { t[2] } else { 1.0 - t[2] });
-            let node = &self.data[base + dx + nx * (dy + ny * dz)];
+            let wc = u[dx] * v[dy] * w[dz];
+            let node = &rows[dy + 2 * dz][dx];
             for k in 0..4 {
-                acc[k] += w * node[k] as f64;
+                acc[k] += wc * node[k] as f64;
             }
         }
         Some((acc[0], Vec3::new(acc[1], acc[2], acc[3])))

@@ -25,7 +25,7 @@ use crate::geom::Vec3;
 use crate::mesh::Topology;
 use rayon::prelude::*;
 use std::collections::HashMap;
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, OnceLock, RwLock};
 
 /// One layer as seen by the operators: its field, stiffness weight and thickness.
 pub struct Layer<'a> {
@@ -61,9 +61,32 @@ const MAX_FADING: usize = 3;
 const MARGIN_CAP: f64 = 1e3;
 const FADE_GRADIENT: f64 = 1.0;
 
+/// Stacks of at most this many layers keep their operators in a table with one slot per
+/// (layer, active set) (at most 10 × 2^10 slots); larger ones in a map.
+const TABLE_LAYERS: usize = 10;
+
+/// An operator of the [`Composer`]'s cache.
+enum OpRef<'c> {
+    Table(&'c Operator),
+    Map(Arc<Operator>),
+}
+
+impl std::ops::Deref for OpRef<'_> {
+    type Target = Operator;
+    fn deref(&self) -> &Operator {
+        match self {
+            OpRef::Table(op) => op,
+            OpRef::Map(op) => op,
+        }
+    }
+}
+
 /// Evaluates corrected fields, caching one operator per (layer, active set).
 pub struct Composer<'a> {
     layers: &'a [Layer<'a>],
+    /// With at most `TABLE_LAYERS` layers: slot `i · 2^n + mask`, built on first use (a
+    /// lookup reads one slot: no lock and no reference count shared between the threads).
+    table: Vec<OnceLock<Operator>>,
     cache: Vec<RwLock<HashMap<u32, Arc<Operator>>>>,
     scaled_offsets: bool,
 }
@@ -85,8 +108,11 @@ impl<'a> Composer<'a> {
                 )));
             }
         }
+        let n = layers.len();
+        let slots = if n <= TABLE_LAYERS { n << n } else { 0 };
         Ok(Composer {
             layers,
+            table: (0..slots).map(|_| OnceLock::new()).collect(),
             cache: (0..layers.len())
                 .map(|_| RwLock::new(HashMap::new()))
                 .collect(),
@@ -119,10 +145,8 @@ impl<'a> Composer<'a> {
         self.layers
     }
 
-    fn operator(&self, i: usize, mask: u32) -> Arc<Operator> {
-        if let Some(op) = self.cache[i].read().expect("not poisoned").get(&mask) {
-            return op.clone();
-        }
+    /// `O_i` over the layers of `mask` (which contains `i`).
+    fn build_operator(&self, i: usize, mask: u32) -> Operator {
         let idx: Vec<usize> = (0..self.layers.len())
             .filter(|&j| mask & (1 << j) != 0)
             .collect();
@@ -131,13 +155,26 @@ impl<'a> Composer<'a> {
             .position(|&j| j == i)
             .expect("own layer in the mask");
         let w: Vec<f64> = idx.iter().map(|&j| self.layers[j].weight).collect();
-        let op = Arc::new(Operator::new(&w, me).expect("weights checked in Composer::new"));
-        self.cache[i]
-            .write()
-            .expect("not poisoned")
-            .entry(mask)
-            .or_insert(op)
-            .clone()
+        Operator::new(&w, me).expect("weights checked in Composer::new")
+    }
+
+    fn operator(&self, i: usize, mask: u32) -> OpRef<'_> {
+        if !self.table.is_empty() {
+            let slot = &self.table[(i << self.layers.len()) | mask as usize];
+            return OpRef::Table(slot.get_or_init(|| self.build_operator(i, mask)));
+        }
+        if let Some(op) = self.cache[i].read().expect("not poisoned").get(&mask) {
+            return OpRef::Map(op.clone());
+        }
+        let op = Arc::new(self.build_operator(i, mask));
+        OpRef::Map(
+            self.cache[i]
+                .write()
+                .expect("not poisoned")
+                .entry(mask)
+                .or_insert(op)
+                .clone(),
+        )
     }
 
     /// `f̂_i(p)` and its gradient (eq. 12–14); `None` where layer `i`'s own field is undefined.
@@ -317,8 +354,10 @@ pub struct ProjectionParams {
     /// Undo the relaxation moves that would invert a triangle (see `guard_flips`).
     pub prevent_flips: bool,
     /// Evaluate only the vertices whose position changed since their last evaluation (the
-    /// others would give the same step). Gives the same result as evaluating every vertex of
-    /// the zone in every pass, with fewer field evaluations; `false` is the reference.
+    /// others would give the same step), and relax only the vertices that moved in their last
+    /// relaxation or whose one-ring (position or field normal) changed since (the others would
+    /// make no move again). Gives the same result as evaluating and relaxing every vertex of
+    /// the zone in every pass, with less work; `false` is the reference.
     pub active_set: bool,
     /// Relaxation moves shorter than `relax_skip · tolerance` are not made (the vertex keeps
     /// its position, so the active set need not evaluate it again); 0 makes every move.
@@ -381,6 +420,9 @@ pub struct LayerProjection {
     pub unconverged: usize,
     /// Vertex evaluations of the corrected field (work measure).
     pub evaluations: usize,
+    /// Vertex relaxations computed (work measure; with the active set, a vertex whose last
+    /// relaxation made no move is skipped while neither it nor a neighbour changes).
+    pub relaxations: usize,
 }
 
 /// What the repair of residual intersections changes in a projection (see [`super::repair`]).
@@ -483,6 +525,7 @@ pub fn project_from(
     let mut last = vec![f64::INFINITY; nv];
     let mut iterations = 0;
     let mut evaluations = 0;
+    let mut relaxations = 0;
     let mut guard = params
         .prevent_self_intersections
         .then(|| SelfGuard::new(triangles, topo, start));
@@ -499,6 +542,16 @@ pub fn project_from(
     // consecutive evaluations read nearby grid cells (each vertex's step depends only on its
     // own state: any order gives the same result).
     let visit = morton_order(start);
+    // Relaxation cache: `quiet[v]` when the last relaxation of `v` made no move and neither
+    // `v` nor a neighbour has changed position or normal since (the relaxation of `v` reads
+    // only these, so it would make no move again).
+    let mut quiet = vec![false; nv];
+    let unquiet = |quiet: &mut [bool], v: usize| {
+        quiet[v] = false;
+        for &u in topo.vertex_neighbors.row(v) {
+            quiet[u as usize] = false;
+        }
+    };
     for it in 0..params.max_iterations.max(1) {
         iterations = it + 1;
 
@@ -567,6 +620,9 @@ pub fn project_from(
             if let Some((p, nrm, rn, res, f)) = s {
                 factor[v] = f;
                 last[v] = res;
+                if p != pos[v] || (nrm != Vec3::zeros() && nrm != normal[v]) {
+                    unquiet(&mut quiet, v);
+                }
                 if p != pos[v] {
                     any = true;
                     if !moved[v] {
@@ -621,20 +677,27 @@ pub fn project_from(
                 &pos,
                 &normal,
                 &zone_list,
-                &|v| movable(v) && evaluated[v],
+                &|v| movable(v) && evaluated[v] && !(params.active_set && quiet[v]),
                 topo,
                 rest,
                 params.relaxation,
                 params.relax_skip * params.tolerance,
             );
-            for (v, p, d) in moves {
-                pos[v] = p;
-                relaxed = relaxed.max(d);
-                changed.push(v);
+            relaxations += moves.len();
+            for (v, m) in moves {
+                match m {
+                    Some((p, d)) => {
+                        pos[v] = p;
+                        relaxed = relaxed.max(d);
+                        changed.push(v);
+                        unquiet(&mut quiet, v);
+                    }
+                    None => quiet[v] = true,
+                }
             }
         }
         if params.prevent_flips {
-            guard_flips(
+            let reverted = guard_flips(
                 &before,
                 &mut pos,
                 &normal,
@@ -644,6 +707,9 @@ pub fn project_from(
                 &changed,
                 (&mut tri_mark, it + 1),
             );
+            for v in reverted {
+                unquiet(&mut quiet, v);
+            }
         }
         let mut stop = !any && relaxed <= params.tolerance;
         if let Some(g) = guard.as_mut() {
@@ -659,6 +725,7 @@ pub fn project_from(
                 for v in g.revert_new(&checkpoint, &mut pos, &since) {
                     // Put back: evaluate again next pass (its neighbours may have moved on).
                     at[v] = Vec3::repeat(f64::NAN);
+                    unquiet(&mut quiet, v);
                     stop = false;
                 }
                 for &v in &since {
@@ -684,6 +751,7 @@ pub fn project_from(
         iterations,
         unconverged,
         evaluations,
+        relaxations,
     }
 }
 
@@ -802,7 +870,9 @@ pub fn target_iso(eps: f64, margin: f64, share: f64) -> f64 {
 /// rotation about its centre that makes it tangent to the field and the symmetric stretch that
 /// restores its rest length give target displacements of its two vertices; each vertex moves
 /// by `amount` times the tangential part of their average (moves shorter than `skip` are not
-/// made). Returns the moved vertices with their new positions and displacements.
+/// made). Returns, for every zone vertex that passes `movable` (in zone order), its new
+/// position and displacement, or `None` when it does not move.
+#[allow(clippy::type_complexity)]
 fn relax(
     pos: &[Vec3],
     normal: &[Vec3],
@@ -812,51 +882,65 @@ fn relax(
     rest: &[f64],
     amount: f64,
     skip: f64,
-) -> Vec<(usize, Vec3, f64)> {
+) -> Vec<(usize, Option<(Vec3, f64)>)> {
     zone.par_iter()
         .filter_map(|&v| {
             if !movable(v) {
                 return None;
             }
-            let nv = normal[v];
-            let mut acc = Vec3::zeros();
-            let mut count = 0usize;
-            for (&u, &e) in topo
-                .vertex_neighbors
-                .row(v)
-                .iter()
-                .zip(topo.vertex_edges.row(v))
-            {
-                let u = u as usize;
-                let nu = normal[u];
-                let mut ne = nv + nu;
-                let l = ne.norm();
-                if l < 1e-12 {
-                    continue;
-                }
-                ne /= l;
-                let c = (pos[v] + pos[u]) * 0.5;
-                let d = pos[v] - pos[u];
-                let dt = d - ne * d.dot(&ne);
-                let lt = dt.norm();
-                if lt < 1e-15 {
-                    continue;
-                }
-                let target = c + dt * (0.5 * rest[e as usize] / lt);
-                acc += target - pos[v];
-                count += 1;
-            }
-            if count == 0 {
-                return None;
-            }
-            let mut d = acc / count as f64;
-            d -= nv * d.dot(&nv);
-            d *= amount;
-            let l = d.norm();
-            if l < skip || l == 0.0 {
-                return None;
-            }
-            Some((v, pos[v] + d, l))
+            Some((v, relax_vertex(v, pos, normal, topo, rest, amount, skip)))
         })
         .collect()
+}
+
+/// The relaxation move of vertex `v` (see [`relax`]): new position and displacement, `None`
+/// when it does not move.
+fn relax_vertex(
+    v: usize,
+    pos: &[Vec3],
+    normal: &[Vec3],
+    topo: &Topology,
+    rest: &[f64],
+    amount: f64,
+    skip: f64,
+) -> Option<(Vec3, f64)> {
+    let nv = normal[v];
+    let mut acc = Vec3::zeros();
+    let mut count = 0usize;
+    for (&u, &e) in topo
+        .vertex_neighbors
+        .row(v)
+        .iter()
+        .zip(topo.vertex_edges.row(v))
+    {
+        let u = u as usize;
+        let nu = normal[u];
+        let mut ne = nv + nu;
+        let l = ne.norm();
+        if l < 1e-12 {
+            continue;
+        }
+        ne /= l;
+        let c = (pos[v] + pos[u]) * 0.5;
+        let d = pos[v] - pos[u];
+        let dt = d - ne * d.dot(&ne);
+        let lt = dt.norm();
+        if lt < 1e-15 {
+            continue;
+        }
+        let target = c + dt * (0.5 * rest[e as usize] / lt);
+        acc += target - pos[v];
+        count += 1;
+    }
+    if count == 0 {
+        return None;
+    }
+    let mut d = acc / count as f64;
+    d -= nv * d.dot(&nv);
+    d *= amount;
+    let l = d.norm();
+    if l < skip || l == 0.0 {
+        return None;
+    }
+    Some((pos[v] + d, l))
 }

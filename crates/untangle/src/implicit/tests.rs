@@ -580,23 +580,34 @@ fn run_offset(
 
 #[test]
 fn active_set_projection_equals_the_full_one() {
-    // Oracle: the reference loop evaluates every vertex of the zone in every pass; the active
-    // set skips the vertices whose position did not change. Same positions, bit for bit, with
-    // fewer evaluations; with and without the relaxation skip.
-    for skip in [0.0, 10.0] {
+    // Oracle: the reference loop evaluates and relaxes every vertex of the zone in every pass;
+    // the active set skips the vertices whose position did not change, and the relaxation of
+    // the vertices that made no move and whose one-ring did not change. Same positions, bit for
+    // bit, with fewer evaluations and relaxations; with and without the relaxation skip, and
+    // with the self-intersection guard (which puts vertices back).
+    for (skip, guard) in [(0.0, false), (10.0, false), (10.0, true)] {
         let (inner, outer, mut p) = offset_spheres(0.03, 0.47);
         p.projection.relax_skip = skip;
+        p.projection.prevent_self_intersections = guard;
         p.projection.active_set = true;
         let a = run_offset(&inner, &outer, &p);
         p.projection.active_set = false;
         let b = run_offset(&inner, &outer, &p);
-        assert_eq!(a.positions, b.positions, "skip {skip}");
-        let (ea, eb): (usize, usize) = (
-            a.projections.iter().map(|x| x.evaluations).sum(),
-            b.projections.iter().map(|x| x.evaluations).sum(),
+        assert_eq!(a.positions, b.positions, "skip {skip}, guard {guard}");
+        let work = |o: &super::layers::Untangled| -> (usize, usize) {
+            (
+                o.projections.iter().map(|x| x.evaluations).sum(),
+                o.projections.iter().map(|x| x.relaxations).sum(),
+            )
+        };
+        let ((ea, ra), (eb, rb)) = (work(&a), work(&b));
+        eprintln!(
+            "skip {skip}, guard {guard}: evaluations {ea} (active set) vs {eb} (full), \
+             relaxations {ra} vs {rb}"
         );
-        eprintln!("skip {skip}: evaluations {ea} (active set) vs {eb} (full)");
         assert!(ea < eb, "{ea} vs {eb}");
+        // Without the skip every relaxation moves its vertex (none is skipped next time).
+        assert!(ra <= rb && (skip == 0.0 || ra < rb), "{ra} vs {rb}");
     }
 }
 
