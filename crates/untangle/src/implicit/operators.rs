@@ -187,12 +187,33 @@ fn dot(a: &FieldVec, b: &FieldVec, n: usize) -> f64 {
 /// Least squares `min ‖x − Σ_{k∈set} s_k g_k‖` by modified Gram–Schmidt with one
 /// re-orthogonalisation pass; returns the coefficients (indexed like `gens`).
 fn least_squares(gens: &[FieldVec], set: &[usize], x: &FieldVec, n: usize) -> FieldVec {
-    // Work arrays sized for the common small stacks (the arithmetic is the same).
+    // One generator (the first solve of every closest point): the same arithmetic without
+    // the work arrays. Work arrays sized for the common small stacks otherwise (the
+    // arithmetic is the same).
+    if let [k] = *set {
+        return least_squares_one(gens, k, x, n);
+    }
     if n <= 8 && set.len() <= 8 {
         least_squares_in::<8>(gens, set, x, n)
     } else {
         least_squares_in::<MAX_LAYERS>(gens, set, x, n)
     }
+}
+
+/// [`least_squares`] for the one generator `gens[k]`, step for step as in
+/// [`least_squares_in`] (same bits).
+fn least_squares_one(gens: &[FieldVec], k: usize, x: &FieldVec, n: usize) -> FieldVec {
+    let mut v = gens[k];
+    let nrm = dot(&v, &v, n).sqrt();
+    if nrm > 0.0 {
+        for vj in v.iter_mut().take(n) {
+            *vj /= nrm;
+        }
+    }
+    let qtx = dot(&v, x, n);
+    let mut out = [0.0; MAX_LAYERS];
+    out[k] = if nrm > 1e-300 { qtx / nrm } else { 0.0 };
+    out
 }
 
 /// [`least_squares`] with `N × N` work arrays (`n ≤ N`, `set.len() ≤ N`).
@@ -1036,6 +1057,31 @@ mod tests {
             let set: Vec<usize> = (0..n).filter(|&k| k == 0 || k != drop).collect();
             let a = least_squares_in::<8>(&gens, &set, &x, n);
             let b = least_squares_in::<MAX_LAYERS>(&gens, &set, &x, n);
+            prop_assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits));
+        }
+
+        #[test]
+        fn one_generator_least_squares_equals_the_general_one(
+            seed in any::<u64>(), n in 1usize..=MAX_LAYERS, k in 0usize..4, zero in any::<bool>(),
+        ) {
+            // The one-generator path gives bit for bit the result of the general one (also
+            // for a zero generator, whose coefficient is 0).
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut gens = vec![[0.0; MAX_LAYERS]; 4];
+            for g in &mut gens {
+                for x in g.iter_mut().take(n) {
+                    *x = rng.random_range(-1.0..1.0);
+                }
+            }
+            if zero {
+                gens[k] = [0.0; MAX_LAYERS];
+            }
+            let mut x = [0.0; MAX_LAYERS];
+            for v in x.iter_mut().take(n) {
+                *v = rng.random_range(-2.0..2.0);
+            }
+            let a = least_squares(&gens, &[k], &x, n);
+            let b = least_squares_in::<MAX_LAYERS>(&gens, &[k], &x, n);
             prop_assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits));
         }
     }
