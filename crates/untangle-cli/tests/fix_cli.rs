@@ -388,6 +388,19 @@ fn bad_input_is_one_line_exit_2_and_no_output() {
             ],
             "gamma",
         ),
+        (
+            vec![
+                "fix",
+                "ex.obj",
+                "-o",
+                "o.obj",
+                "--method",
+                "cha-ko",
+                "--revoke-levels",
+                "0",
+            ],
+            "revoke_levels_per_step",
+        ),
     ];
     std::fs::create_dir(d.path().join("fr")).unwrap();
     std::fs::copy(d.path().join("ex.obj"), d.path().join("fr/frame_0000.obj")).unwrap();
@@ -474,4 +487,47 @@ fn demo_untangles_and_writes_pictures() {
             .count()
     };
     assert!(red(&before) > 100 && red(&after) == 0);
+}
+
+/// `--revoke-levels K` undoes K levels (scalings by `1/gamma`) of an operation per step: on
+/// the LL scene the subjects get back to their original uv sooner, so the loop resolves in
+/// fewer steps, and the report shows at most K levels revoked per operation and step.
+#[test]
+fn revoke_levels_speed_up_the_restoration() {
+    let d = tempfile::tempdir().unwrap();
+    let o = untangle(&["scene", "ll", "-o", "ll.obj"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let mut steps = Vec::new();
+    for k in ["1", "3"] {
+        let json_name = format!("r{k}.json");
+        let o = untangle(
+            &[
+                "fix",
+                "ll.obj",
+                "-o",
+                &format!("o{k}.obj"),
+                "--gravity",
+                "0",
+                "--revoke-levels",
+                k,
+                "--json",
+                &json_name,
+                "--quiet",
+            ],
+            d.path(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let c = untangle(&["check", &format!("o{k}.obj")], d.path());
+        assert_eq!(c.status.code(), Some(0), "{}", stdout(&c));
+        let r = json(&d.path().join(&json_name));
+        assert_eq!(
+            r["params"]["revoke_levels_per_step"],
+            k.parse::<u64>().unwrap()
+        );
+        steps.push(r["summary"]["steps"].as_u64().unwrap());
+    }
+    assert!(
+        steps[1] < steps[0],
+        "steps with 1 and 3 levels per step: {steps:?}"
+    );
 }

@@ -4,7 +4,8 @@
 //! and every uv edit revoked), the first clean step, whether the red-vertex count never increased
 //! from one step to the next (the paper's theorem, part 1), the first increase if any, whether an
 //! independent analysis of the final positions is clean, and the wall time; then the summary
-//! (resolved, median steps, monotone seeds).
+//! (resolved, median steps, monotone seeds). `CHAKO_SAVE_DIR=DIR` writes the final cloth of
+//! every seed that did not resolve as `DIR/seedS.obj` (for `untangle check`).
 //!
 //! ```text
 //! cargo run --release -p untangle --example cha_ko_exploded -- [first_seed] [last_seed] [cells] [max_steps]
@@ -140,6 +141,12 @@ fn main() {
         let (am, _) = AnalysisMesh::single(&g.mesh).expect("analysis mesh");
         let clean = analyze(&am, r.simulator().positions()).is_ok_and(|a| a.is_clean());
         let ok = s.outcome == Outcome::Resolved;
+        if let (false, Ok(dir)) = (ok, std::env::var("CHAKO_SAVE_DIR")) {
+            let mut m = g.mesh.clone();
+            m.positions = r.simulator().positions().to_vec();
+            let path = std::path::Path::new(&dir).join(format!("seed{seed}.obj"));
+            untangle::mesh::obj::write_obj(&path, &m, None, "").expect("write");
+        }
         if ok {
             resolved += 1;
             steps_resolved.push(s.steps);
