@@ -391,6 +391,161 @@ pub fn solve(
     }
 }
 
+/// Which substitution applies the factor in [`solve_factored`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FactorSolve {
+    /// faer's double-precision solve ([`ScalarCholesky::solve3`]).
+    Double,
+    /// The single-precision supernodal substitution ([`ScalarCholesky::solve_increment_with`]):
+    /// half the bytes read and the three coordinates in one pass. The residual, the iterate
+    /// and all reductions stay in double precision; only the preconditioner is rounded (a
+    /// slightly perturbed preconditioner, not a perturbed system).
+    Single,
+}
+
+/// The preconditioner `out = S (B^-1 (x) I3) S r` with the factor of `B` applied by `how`;
+/// returns `r . out` (summed in fixed chunks, in order).
+pub fn apply_factor(
+    factor: &ScalarCholesky,
+    how: FactorSolve,
+    r: &[Vec3],
+    filter: &[Filter],
+    out: &mut [Vec3],
+) -> f64 {
+    match how {
+        FactorSolve::Double => factor.apply(r, filter, out),
+        FactorSolve::Single => {
+            if factor.is_factored() {
+                factor.solve_increment_with(|i| filter[i].apply(r[i]), out);
+            } else {
+                for (o, (ri, f)) in out.iter_mut().zip(r.iter().zip(filter)) {
+                    *o = f.apply(*ri);
+                }
+            }
+            let parts: Vec<f64> = out
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .map(|(c, os)| {
+                    let mut acc = 0.0;
+                    for (k, o) in os.iter_mut().enumerate() {
+                        let i = c * CHUNK + k;
+                        *o = filter[i].apply(*o);
+                        acc += r[i].dot(o);
+                    }
+                    acc
+                })
+                .collect();
+            parts.iter().sum()
+        }
+    }
+}
+
+/// [`solve`] preconditioned with a sparse Cholesky factor ([`Preconditioner::Cholesky`]) for
+/// an operator given as a function, `apply(x, y)` writing `y = A x` (every row; `A` symmetric,
+/// positive definite on the free subspace): the projective-dynamics global step under contact
+/// terms, whose matrix is the factored scalar one plus a few rank-one terms and is never
+/// assembled ([`crate::sim::projective::ContactTerms`]). The same filtered CG as [`solve`]
+/// (Baraff & Witkin 1998, Sec. 5.3), with the factor applied by `how`. A start `x` that is zero
+/// after filtering skips the first product (`A 0 = 0`). Reductions are summed in fixed chunks,
+/// so the result does not depend on the thread count when `apply` does not.
+#[allow(clippy::too_many_arguments)]
+pub fn solve_factored(
+    apply: &(dyn Fn(&[Vec3], &mut [Vec3]) + Sync),
+    b: &[Vec3],
+    filter: &[Filter],
+    z: &[Vec3],
+    x: &mut [Vec3],
+    settings: PcgSettings,
+    factor: &ScalarCholesky,
+    how: FactorSolve,
+) -> PcgResult {
+    let n = b.len();
+    for i in 0..n {
+        x[i] = match filter[i] {
+            Filter::Free => x[i],
+            Filter::Fixed => z[i],
+            Filter::Normal(nn) => nn * nn.dot(&z[i]) + (x[i] - nn * nn.dot(&x[i])),
+        };
+    }
+    let mut q = vec![Vec3::zeros(); n];
+    let cold = x.iter().all(|v| *v == Vec3::zeros());
+    if !cold {
+        apply(x, &mut q);
+    }
+    let mut r: Vec<Vec3> = (0..n).map(|i| filter[i].apply(b[i] - q[i])).collect();
+    let fb: Vec<Vec3> = (0..n).map(|i| filter[i].apply(b[i])).collect();
+    let mut s = vec![Vec3::zeros(); n];
+    let delta0 = apply_factor(factor, how, &fb, filter, &mut s);
+    let mut c = vec![Vec3::zeros(); n];
+    let mut delta_new = if same_bits(&r, &fb) {
+        c.copy_from_slice(&s);
+        delta0
+    } else {
+        apply_factor(factor, how, &r, filter, &mut c)
+    };
+    let tol2 = settings.tolerance * settings.tolerance;
+    let threshold = (tol2 * delta0).max(settings.absolute * settings.absolute);
+    let mut it = 0;
+    let rel = |d: f64| {
+        if delta0 > 0.0 {
+            (d.max(0.0) / delta0).sqrt()
+        } else {
+            0.0
+        }
+    };
+    while delta_new > threshold && it < settings.max_iterations {
+        apply(&c, &mut q);
+        let parts: Vec<f64> = q
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .map(|(ch, qs)| {
+                let mut acc = 0.0;
+                for (k, qi) in qs.iter_mut().enumerate() {
+                    let i = ch * CHUNK + k;
+                    *qi = filter[i].apply(*qi);
+                    acc += c[i].dot(qi);
+                }
+                acc
+            })
+            .collect();
+        let cq: f64 = parts.iter().sum();
+        if cq.is_nan() || cq <= 0.0 {
+            break;
+        }
+        let alpha = delta_new / cq;
+        x.par_chunks_mut(CHUNK)
+            .zip(r.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(ch, (xs, rs))| {
+                for k in 0..xs.len() {
+                    let i = ch * CHUNK + k;
+                    xs[k] += alpha * c[i];
+                    rs[k] -= alpha * q[i];
+                }
+            });
+        let rs_dot = apply_factor(factor, how, &r, filter, &mut s);
+        if rs_dot.is_nan() || rs_dot < 0.0 {
+            delta_new = f64::INFINITY;
+            break;
+        }
+        let delta_old = delta_new;
+        delta_new = rs_dot;
+        let beta = delta_new / delta_old;
+        c.par_chunks_mut(CHUNK).enumerate().for_each(|(ch, cs)| {
+            for (k, ci) in cs.iter_mut().enumerate() {
+                let i = ch * CHUNK + k;
+                *ci = filter[i].apply(s[i] + beta * *ci);
+            }
+        });
+        it += 1;
+    }
+    PcgResult {
+        iterations: it,
+        relative_residual: rel(delta_new),
+        converged: delta_new <= threshold,
+    }
+}
+
 /// Galerkin correction of an approximate solution `x` of `A x = b` in the three global
 /// translations (each restricted to the free directions by the filter): `x += S E c` with
 /// `(E^T S A S E) c = E^T S (b - A x)`. Afterwards the filtered residual sums to zero.

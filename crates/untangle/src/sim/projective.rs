@@ -30,7 +30,9 @@
 //! - Contacts (the simulator's obstacle constraints, cloth-cloth springs and friction) enter the
 //!   global system only; they change every step, so the global step solves the *current* system
 //!   by conjugate gradients preconditioned with the factor of the base matrix
-//!   ([`super::pcg::Preconditioner::Cholesky`]), warm-started at the current iterate.
+//!   ([`super::pcg::solve_factored`]), warm-started at the current iterate. The contact terms
+//!   are applied next to the scalar matrix ([`ContactTerms`], no `3 x 3` blocks assembled) and
+//!   the factor in single precision (the residual stays in double precision).
 //!
 //! Every local/global iteration never increases `E` (the local step minimises over `p` exactly,
 //! the global step is CG on a convex quadratic started at the current iterate), which the tests
@@ -52,6 +54,9 @@ const PROJECT_CHUNK: usize = 256;
 
 /// Whether direct global steps solve for the increment with the factor in single precision.
 const SINGLE_PRECISION_INCREMENTS: bool = true;
+
+/// How CG global steps (under contact terms) apply the factor as preconditioner.
+const CG_FACTOR_SOLVE: pcg::FactorSolve = pcg::FactorSolve::Single;
 
 /// Per unit rest area, the weights `(arap, columns)` of the two membrane constraints that match
 /// Baraff & Witkin's stretch stiffness `k_stretch` and shear stiffness `k_shear` to second order
@@ -570,6 +575,29 @@ impl Projective {
         });
     }
 
+    /// `y = (V (x) I3 + C) x` for the scalar matrix with `values` per pattern slot and the
+    /// contact terms `contacts` ([`ContactTerms::mul_add`]): the rows in parallel
+    /// ([`row_times`]), then the terms in order.
+    pub fn mul_with_contacts(
+        &self,
+        values: &[f64],
+        contacts: Option<&ContactTerms>,
+        x: &[Vec3],
+        y: &mut [Vec3],
+    ) {
+        let p = &self.pattern;
+        y.par_chunks_mut(CHUNK).enumerate().for_each(|(c, ys)| {
+            for (k, yi) in ys.iter_mut().enumerate() {
+                let i = c * CHUNK + k;
+                let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
+                *yi = row_times(&p.cols[row.clone()], &values[row], x);
+            }
+        });
+        if let Some(c) = contacts {
+            c.mul_add(x, y);
+        }
+    }
+
     fn gradient(&self, t: usize, x: &[Vec3]) -> Matrix3x2<f64> {
         triangle_gradient(&self.triangles[t], &self.rest[t], x)
     }
@@ -669,6 +697,58 @@ impl Projective {
     }
 }
 
+/// A cloth-cloth contact spring of a global step, `k (w (x) n)(w (x) n)^T` (a rank-one term on
+/// the four weighted nodes; [`super::contact::ClothContact`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpringTerm {
+    /// Nodes.
+    pub nodes: [u32; 4],
+    /// Closest-point weights.
+    pub weights: [f64; 4],
+    /// Unit normal.
+    pub normal: Vec3,
+    /// Stiffness (per `h^2`, as the global matrix).
+    pub k: f64,
+}
+
+/// The contact terms of a projective global step that the factored scalar matrix does not hold:
+/// cloth-cloth springs ([`SpringTerm`]) and tangential friction penalties `k (I - n n^T)` at
+/// single vertices. Applied next to the scalar matrix without assembling `3 x 3` blocks
+/// ([`Projective::mul_with_contacts`]): the global step's CG then costs one scalar row pass
+/// plus `O(terms)` per product.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ContactTerms {
+    /// Springs.
+    pub springs: Vec<SpringTerm>,
+    /// Friction penalties: vertex, unit normal, stiffness.
+    pub friction: Vec<(u32, Vec3, f64)>,
+}
+
+impl ContactTerms {
+    /// Whether there is no term.
+    pub fn is_empty(&self) -> bool {
+        self.springs.is_empty() && self.friction.is_empty()
+    }
+
+    /// `y += C x` for the terms `C`, in term order (sequential: deterministic).
+    pub fn mul_add(&self, x: &[Vec3], y: &mut [Vec3]) {
+        for s in &self.springs {
+            let mut d = 0.0;
+            for k in 0..4 {
+                d += s.weights[k] * s.normal.dot(&x[s.nodes[k] as usize]);
+            }
+            let f = s.normal * (s.k * d);
+            for k in 0..4 {
+                y[s.nodes[k] as usize] += f * s.weights[k];
+            }
+        }
+        for &(i, n, k) in &self.friction {
+            let xi = x[i as usize];
+            y[i as usize] += (xi - n * n.dot(&xi)) * k;
+        }
+    }
+}
+
 /// One implicit step's problem for [`Projective::global_step`]: inertia, damping, constraints and the extra
 /// (contact) terms of the global system.
 pub struct StepProblem<'a> {
@@ -680,18 +760,18 @@ pub struct StepProblem<'a> {
     pub inertia: &'a [f64],
     /// `beta / h` (stiffness damping on the elastic matrix).
     pub damping: f64,
-    /// The global matrix: `values` as identity blocks, plus contact blocks; `None` when it is
-    /// exactly `values` (built on demand if a CG global step needs it).
-    pub matrix: Option<&'a BsrMatrix>,
+    /// The contact terms of the global matrix (`values` plus these); `None` when it is exactly
+    /// `values`.
+    pub contacts: Option<&'a ContactTerms>,
     /// The scalar part of the global matrix ([`Projective::system_values`]).
     pub values: &'a [f64],
-    /// Whether `matrix` is exactly `values` (no contact blocks) and the factor is of `values`
+    /// Whether the matrix is exactly `values` (no contact terms) and the factor is of `values`
     /// with the fixed nodes of `filter` eliminated and no other constraint: then the global
     /// step is one direct solve.
     pub exact: bool,
     /// A few contact terms as a low-rank correction of the factor ([`super::low_rank`]), with
     /// the factor exact for `values`: the global step is then one direct solve plus the
-    /// correction instead of CG (`matrix` is not used).
+    /// correction instead of CG (`contacts` is not used).
     pub low_rank: Option<&'a LowRank>,
     /// Constant right-hand-side terms (contacts, friction) added to inertia and damping.
     pub rhs_extra: &'a [Vec3],
@@ -884,39 +964,34 @@ impl Projective {
                 converged: true,
             };
         }
-        let owned;
-        let matrix = match problem.matrix {
-            Some(m) => m,
-            None => {
-                owned = scalar_blocks(&self.pattern, problem.values);
-                &owned
-            }
-        };
         let (ax, b, z, dx) = (&mut work.ax, &mut work.b, &mut work.z, &mut work.dx);
         ax.clear();
         ax.resize(n, Vec3::zeros());
-        matrix.mul(&self.pattern, x, ax);
+        self.mul_with_contacts(problem.values, problem.contacts, x, ax);
         b.clear();
         b.extend((0..n).map(|i| rhs_const[i] + self.gather(targets, i) - ax[i]));
         z.clear();
         z.extend((0..n).map(|i| problem.targets[i] - x[i]));
         dx.clear();
         dx.resize(n, Vec3::zeros());
-        let r = pcg::solve(
-            &self.pattern,
-            matrix,
+        let apply = |v: &[Vec3], out: &mut [Vec3]| {
+            self.mul_with_contacts(problem.values, problem.contacts, v, out)
+        };
+        let r = pcg::solve_factored(
+            &apply,
             b,
             problem.filter,
             z,
             dx,
             settings,
-            pcg::Preconditioner::Cholesky(factor),
+            factor,
+            CG_FACTOR_SOLVE,
         );
         for i in 0..n {
             x[i] += dx[i];
         }
         if let Some(f) = force {
-            matrix.mul(&self.pattern, dx, ax);
+            apply(dx, ax);
             f.resize(n, Vec3::zeros());
             for i in 0..n {
                 f[i] = ax[i] - b[i];
@@ -1195,7 +1270,6 @@ mod tests {
             &s.system.system_values(&fi, s.damping),
             &s.fixed
         ));
-        let a = scalar_blocks(s.system.pattern(), &values);
         let filter: Vec<Filter> = s
             .fixed
             .iter()
@@ -1207,7 +1281,7 @@ mod tests {
             y: &s.y,
             inertia: &s.inertia,
             damping: s.damping,
-            matrix: Some(&a),
+            contacts: None,
             low_rank: None,
             values: &values,
             exact: factor_scale == 1.0,
@@ -1397,6 +1471,166 @@ mod tests {
                     prop_assert!(w[1] <= w[0] + 1e-12 * w[0].abs(), "{:?}", e);
                 }
                 prop_assert!(e.last().unwrap() < &e[0]);
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        /// A CG global step under contact terms (springs on four weighted nodes, friction
+        /// penalties, obstacle-like normal constraints, pinned nodes), applied next to the
+        /// scalar matrix and preconditioned by the factor of a different matrix, converges to
+        /// the minimiser of the global step's quadratic found by a dense KKT solve (nalgebra LU)
+        /// of the assembled `3n x 3n` system with the constraints as rows.
+        #[test]
+        fn contact_global_step_matches_dense_kkt(seed in 0u64..10_000, springs in 0usize..8,
+                                                 normals in 0usize..4, scale in 0.5f64..2.0) {
+            use rand::{Rng, SeedableRng};
+            let s = small(4, 3, seed, 0.01, Elastic { stretch: 300.0, shear: 30.0, bend: 1e-4 });
+            let n = s.x0.len();
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+            let unit = |rng: &mut rand_chacha::ChaCha8Rng| loop {
+                let v = Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0),
+                                  rng.random_range(-1.0..1.0));
+                if v.norm() > 0.1 {
+                    return v.normalize();
+                }
+            };
+            let mut terms = ContactTerms::default();
+            for _ in 0..springs {
+                let mut nodes = [0u32; 4];
+                let mut weights = [0.0; 4];
+                for k in 0..4 {
+                    nodes[k] = rng.random_range(0..n as u32);
+                    weights[k] = rng.random_range(-1.0..1.0);
+                }
+                let k = rng.random_range(0.1..20.0) * s.inertia[1];
+                terms.springs.push(SpringTerm { nodes, weights, normal: unit(&mut rng), k });
+            }
+            let mut filter: Vec<Filter> = s.fixed.iter()
+                .map(|&f| if f { Filter::Fixed } else { Filter::Free }).collect();
+            let mut targets = s.x0.clone();
+            for _ in 0..normals {
+                let v = rng.random_range(0..n);
+                if filter[v] != Filter::Free {
+                    continue;
+                }
+                let nn = unit(&mut rng);
+                filter[v] = Filter::Normal(nn);
+                targets[v] += nn * rng.random_range(-0.01..0.01);
+                if rng.random_bool(0.5) {
+                    terms.friction.push((v as u32, nn, rng.random_range(0.1..5.0) * s.inertia[v]));
+                }
+            }
+            let values = s.system.system_values(&s.inertia, s.damping);
+            let fi: Vec<f64> = s.inertia.iter().map(|m| m * scale).collect();
+            let mut chol = ScalarCholesky::new(s.system.pattern()).unwrap();
+            prop_assert!(chol.factor(s.system.pattern(), &s.system.system_values(&fi, s.damping),
+                                     &s.fixed));
+            let extra: Vec<Vec3> = (0..n).map(|_| unit(&mut rng) * s.inertia[1] * 1e-3).collect();
+            let problem = StepProblem {
+                x0: &s.x0,
+                y: &s.y,
+                inertia: &s.inertia,
+                damping: s.damping,
+                contacts: Some(&terms),
+                low_rank: None,
+                values: &values,
+                exact: false,
+                rhs_extra: &extra,
+                filter: &filter,
+                targets: &targets,
+            };
+            let rhs = s.system.constant_rhs(&problem);
+            // The start: the constrained directions at their targets.
+            let mut x: Vec<Vec3> = (0..n).map(|i| match filter[i] {
+                Filter::Free => s.y[i],
+                Filter::Fixed => targets[i],
+                Filter::Normal(nn) => s.y[i] + nn * nn.dot(&(targets[i] - s.y[i])),
+            }).collect();
+            let mut work = Workspace::default();
+            s.system.project(&x, &mut work.targets);
+            let local: Vec<Vec3> = (0..n).map(|i| s.system.gather(&work.targets, i)).collect();
+            let settings = PcgSettings { tolerance: 1e-12, absolute: 0.0, max_iterations: 500 };
+            let mut force = Vec::new();
+            let r = s.system.global_step(&problem, &rhs, &chol, settings, &mut x,
+                                         Some(&mut force), &mut work);
+            prop_assert!(r.converged, "{:?}", r);
+
+            // Dense oracle: H = V (x) I3 + sum k u u^T + friction, rows for the constraints.
+            let m = 3 * n;
+            let p = s.system.pattern();
+            let mut h = nalgebra::DMatrix::<f64>::zeros(m, m);
+            for i in 0..n {
+                for slot in p.offsets[i] as usize..p.offsets[i + 1] as usize {
+                    let j = p.cols[slot] as usize;
+                    for d in 0..3 {
+                        h[(3 * i + d, 3 * j + d)] += values[slot];
+                    }
+                }
+            }
+            for t in &terms.springs {
+                let mut u = nalgebra::DVector::<f64>::zeros(m);
+                for k in 0..4 {
+                    for d in 0..3 {
+                        u[3 * t.nodes[k] as usize + d] += t.weights[k] * t.normal[d];
+                    }
+                }
+                h += &u * u.transpose() * t.k;
+            }
+            for &(v, nn, k) in &terms.friction {
+                let t = (nalgebra::Matrix3::identity() - nn * nn.transpose()) * k;
+                let mut blk = h.fixed_view_mut::<3, 3>(3 * v as usize, 3 * v as usize);
+                blk += t;
+            }
+            let mut rows: Vec<(nalgebra::DVector<f64>, f64)> = Vec::new();
+            for i in 0..n {
+                let dirs: Vec<Vec3> = match filter[i] {
+                    Filter::Free => vec![],
+                    Filter::Fixed => vec![Vec3::x(), Vec3::y(), Vec3::z()],
+                    Filter::Normal(nn) => vec![nn],
+                };
+                for e in dirs {
+                    let mut u = nalgebra::DVector::<f64>::zeros(m);
+                    for d in 0..3 {
+                        u[3 * i + d] = e[d];
+                    }
+                    rows.push((u, e.dot(&targets[i])));
+                }
+            }
+            let q = rows.len();
+            let mut kkt = nalgebra::DMatrix::<f64>::zeros(m + q, m + q);
+            kkt.view_mut((0, 0), (m, m)).copy_from(&h);
+            let mut b = nalgebra::DVector::<f64>::zeros(m + q);
+            for i in 0..n {
+                for d in 0..3 {
+                    b[3 * i + d] = rhs[i][d] + local[i][d];
+                }
+            }
+            for (r, (u, c)) in rows.iter().enumerate() {
+                for a in 0..m {
+                    kkt[(m + r, a)] = u[a];
+                    kkt[(a, m + r)] = u[a];
+                }
+                b[m + r] = *c;
+            }
+            let sol = kkt.lu().solve(&b).unwrap();
+            let scale_x = 1.0 + sol.rows(0, m).amax();
+            for i in 0..n {
+                for d in 0..3 {
+                    prop_assert!((x[i][d] - sol[3 * i + d]).abs() <= 1e-7 * scale_x,
+                                 "x[{}][{}] = {} vs {}", i, d, x[i][d], sol[3 * i + d]);
+                }
+            }
+            // The residual force `A x - b` at the solution is the constraint force: zero in
+            // the free directions, matching the oracle's multipliers in the constrained ones.
+            let hx = &h * sol.rows(0, m);
+            let fscale = 1.0 + b.rows(0, m).amax();
+            for i in 0..n {
+                let want = Vec3::new(hx[3 * i] - b[3 * i], hx[3 * i + 1] - b[3 * i + 1],
+                                     hx[3 * i + 2] - b[3 * i + 2]);
+                prop_assert!((force[i] - want).norm() <= 1e-6 * fscale,
+                             "force[{}] = {} vs {}", i, force[i], want);
             }
         }
     }

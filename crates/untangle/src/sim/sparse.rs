@@ -29,21 +29,42 @@ impl BsrPattern {
     /// The pattern of `n` rows holding the diagonal and both `(i, j)` and `(j, i)` for every given
     /// coupled pair.
     pub fn from_pairs(n: usize, pairs: impl IntoIterator<Item = (u32, u32)>) -> BsrPattern {
-        let mut all: Vec<(u32, u32)> = (0..n as u32).map(|i| (i, i)).collect();
-        for (i, j) in pairs {
-            all.push((i, j));
-            all.push((j, i));
-        }
-        all.sort_unstable();
-        all.dedup();
-        let mut offsets = vec![0u32; n + 1];
-        for &(i, _) in &all {
-            offsets[i as usize + 1] += 1;
+        // Bucketed by row (a counting sort), then each short row sorted and deduplicated: the
+        // same pattern as sorting all entries, without the global sort.
+        let pairs: Vec<(u32, u32)> = pairs.into_iter().collect();
+        let mut start = vec![0u32; n + 1];
+        for &(i, j) in &pairs {
+            start[i as usize + 1] += 1;
+            start[j as usize + 1] += 1;
         }
         for i in 0..n {
-            offsets[i + 1] += offsets[i];
+            start[i + 1] += start[i] + 1;
         }
-        let cols: Vec<u32> = all.iter().map(|&(_, j)| j).collect();
+        let mut fill: Vec<u32> = start[..n].to_vec();
+        let mut raw = vec![0u32; start[n] as usize];
+        for i in 0..n {
+            raw[fill[i] as usize] = i as u32;
+            fill[i] += 1;
+        }
+        for &(i, j) in &pairs {
+            raw[fill[i as usize] as usize] = j;
+            fill[i as usize] += 1;
+            raw[fill[j as usize] as usize] = i;
+            fill[j as usize] += 1;
+        }
+        let mut offsets = vec![0u32; n + 1];
+        let mut cols: Vec<u32> = Vec::with_capacity(raw.len());
+        for i in 0..n {
+            let row = &mut raw[start[i] as usize..start[i + 1] as usize];
+            row.sort_unstable();
+            let first = cols.len();
+            for &j in row.iter() {
+                if cols.len() == first || cols[cols.len() - 1] != j {
+                    cols.push(j);
+                }
+            }
+            offsets[i + 1] = cols.len() as u32;
+        }
         let diag = (0..n)
             .map(|i| {
                 let (s, e) = (offsets[i] as usize, offsets[i + 1] as usize);
@@ -376,6 +397,37 @@ mod tests {
 
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(32))]
+        /// The bucketed pattern equals the one read off the sorted, deduplicated list of all
+        /// entries (the diagonal, every pair both ways), including repeated pairs, self pairs
+        /// and empty rows.
+        #[test]
+        fn from_pairs_matches_a_global_sort(n in 1usize..40,
+                                            raw in proptest::collection::vec((0u32..40, 0u32..40), 0..120)) {
+            let pairs: Vec<(u32, u32)> = raw.iter().map(|&(i, j)| (i % n as u32, j % n as u32)).collect();
+            let got = BsrPattern::from_pairs(n, pairs.iter().copied());
+            let mut all: Vec<(u32, u32)> = (0..n as u32).map(|i| (i, i)).collect();
+            for &(i, j) in &pairs {
+                all.push((i, j));
+                all.push((j, i));
+            }
+            all.sort_unstable();
+            all.dedup();
+            let mut offsets = vec![0u32; n + 1];
+            for &(i, _) in &all {
+                offsets[i as usize + 1] += 1;
+            }
+            for i in 0..n {
+                offsets[i + 1] += offsets[i];
+            }
+            let cols: Vec<u32> = all.iter().map(|&(_, j)| j).collect();
+            proptest::prop_assert_eq!(&got.offsets, &offsets);
+            proptest::prop_assert_eq!(&got.cols, &cols);
+            for i in 0..n {
+                proptest::prop_assert_eq!(got.cols[got.diag[i] as usize], i as u32);
+                proptest::prop_assert!(got.diag[i] >= offsets[i] && got.diag[i] < offsets[i + 1]);
+            }
+        }
+
         /// The dispatched product (AVX2 on CPUs that have it) is bit-identical to the scalar
         /// reference [`mul_rows_generic`] on random patterns and values of mixed magnitudes, and
         /// [`BsrMatrix::mul_then_sum`] to the product followed by a separate pass.

@@ -1101,7 +1101,6 @@ impl Simulator {
         // Constraint forces `A x - rhs` of the last global step that computed them.
         let mut force = vec![Vec3::zeros(); n];
         let mut releases = 0;
-        let pattern = pd.system.pattern();
         let h2 = h * h;
         let mut work = projective::Workspace::default();
         // Chebyshev's iterate before the last (`prev`) and the last (`cur`); reused buffers.
@@ -1170,25 +1169,25 @@ impl Simulator {
                         low_rank::LowRank::new(f, &self.pinned, groups, lr_terms)
                     })
                     .flatten();
-                let mut a =
-                    (terms && lr.is_none()).then(|| projective::scalar_blocks(pattern, &values));
-                if let Some(a) = &mut a {
-                    for (s, &k) in springs.iter().zip(&spring_k) {
-                        a.add_pair(
-                            pattern,
-                            s.nodes,
-                            s.weights,
-                            s.normal * s.normal.transpose() * k,
-                        );
-                    }
-                    a.finish_pairs(pattern);
-                    for (c, &k) in contacts.iter().zip(&friction) {
-                        if k > 0.0 {
-                            a.values[pattern.diag[c.vertex as usize] as usize] +=
-                                (Matrix3::identity() - c.normal * c.normal.transpose()) * k;
-                        }
-                    }
-                }
+                // Otherwise the terms next to the factored matrix, for CG's products.
+                let ct = (terms && lr.is_none()).then(|| projective::ContactTerms {
+                    springs: springs
+                        .iter()
+                        .zip(&spring_k)
+                        .map(|(s, &k)| projective::SpringTerm {
+                            nodes: s.nodes,
+                            weights: s.weights,
+                            normal: s.normal,
+                            k,
+                        })
+                        .collect(),
+                    friction: contacts
+                        .iter()
+                        .zip(&friction)
+                        .filter(|(_, &k)| k > 0.0)
+                        .map(|(c, &k)| (c.vertex, c.normal, k))
+                        .collect(),
+                });
                 for i in 0..n {
                     x[i] = match filter[i] {
                         Filter::Free => x[i],
@@ -1201,7 +1200,7 @@ impl Simulator {
                     y: &y,
                     inertia: &inertia,
                     damping,
-                    matrix: a.as_ref(),
+                    contacts: ct.as_ref(),
                     low_rank: lr.as_ref(),
                     values: &values,
                     exact: pd.factor_exact
