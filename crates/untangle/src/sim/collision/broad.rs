@@ -304,7 +304,9 @@ impl BroadPhase {
         // obstacle flag (bit 32), triangle (bits 0..32).
         let vertex_pairs = || -> Vec<Pair> {
             let mut keys: Vec<u64> = self.vert.cross_pairs(&self.tri, |p, t, o: &mut Vec<u64>| {
-                if !scene.triangles[t as usize].contains(&p) {
+                // Not a corner (spelled out: `contains` became a call in this closure).
+                let c = scene.triangles[t as usize];
+                if c[0] != p && c[1] != p && c[2] != p {
                     o.push(((p as u64) << 33) | t as u64);
                 }
             });
