@@ -9,12 +9,16 @@
 //! double-precision solve run sequentially; a three-column solve is the `x` column and the
 //! `y, z` pair side by side, always split the same way, so results are bit-identical for any
 //! thread count. The single-precision solve of the projective global step's increments
-//! ([`ScalarCholesky::solve_increment_with`]) is our own sequential substitution on faer's
-//! supernodal layout, the three coordinates as the lanes of one pass over the factor, each
-//! supernode's rows below the diagonal block four at a time (faer's solve of one or two
-//! columns spends most of its instructions outside the arithmetic at this size; branch sim9,
-//! BENCHMARKS.md). (A subtree-parallel substitution of our own in double precision, one row at
-//! a time, was tried on branch sim7 and was not faster than faer's.)
+//! ([`ScalarCholesky::solve_increment_with`]) is our own substitution on faer's supernodal
+//! layout, the three coordinates as the lanes of one pass over the factor, each supernode's
+//! rows below the diagonal block four at a time (faer's solve of one or two columns spends most
+//! of its instructions outside the arithmetic at this size; branch sim9, BENCHMARKS.md). Large
+//! factors run it on two threads: the elimination tree is cut into a top and two parts of
+//! hanging subtrees of about equal work, which are substituted side by side; the updates of
+//! the top rows are logged and applied in supernode order, so every row sees the same
+//! operations in the same order as in the sequential substitution (the same bits for any thread
+//! count; branch sim10). (A subtree-parallel substitution of our own in double precision, one
+//! row at a time, was tried on branch sim7 and was not faster than faer's.)
 //!
 //! Pinned (fixed) nodes are eliminated: their rows and columns are replaced by the diagonal, so
 //! that `S (B^-1 (x) I3) S` with the filter projection `S` is the exact inverse of the filtered
@@ -41,7 +45,7 @@ type SolveScratch = (MemBuffer, MemBuffer, Vec<f64>);
 
 /// Scratch of the own single-precision solve: the right-hand sides in the original row order
 /// and the permuted iterate, four lanes per row.
-type LaneScratch = (Vec<[f32; 4]>, Vec<[f32; 4]>);
+type LaneScratch = (Vec<[f32; 4]>, Vec<[f32; 4]>, [Vec<[f32; 4]>; 2]);
 
 /// The symbolic analysis of one node pattern plus the numeric factor of the last matrix given
 /// to [`ScalarCholesky::factor`].
@@ -90,6 +94,69 @@ struct Layout {
     rows: Vec<u32>,
     /// Row `i` of the permuted system is row `fwd[i]` of the original one.
     fwd: Vec<u32>,
+    /// The two-thread schedule of the substitutions (`None`: sequential).
+    split: Option<Split>,
+}
+
+/// A two-thread schedule of the substitutions along the supernodal elimination tree (the
+/// parent of a supernode is the one holding its first row below the diagonal block; every row
+/// below a supernode's diagonal block belongs to one of its ancestors). The tree is cut into a
+/// *top* (a set of supernodes closed under taking ancestors) and the subtrees hanging below it,
+/// which are dealt to two *parts* of about equal work. Forward: the two parts run side by side,
+/// each updating the rows of its own supernodes in place and writing the updates of top rows to
+/// a log; then, in supernode order, the top supernodes run and the logged updates are applied.
+/// Backward: the top supernodes in reverse order, then the two parts side by side. A row's
+/// updates are thus subtracted one by one in supernode order, exactly as in the sequential
+/// substitution: the same bits for any thread count.
+#[derive(Debug)]
+struct Split {
+    /// The supernodes of each part, ascending.
+    parts: [Vec<u32>; 2],
+    /// The top supernodes, ascending.
+    top: Vec<u32>,
+    /// Per supernode of a part: how many of its rows below the diagonal block belong to its
+    /// own part (a prefix; the others are top rows).
+    own: Vec<u32>,
+    /// Per supernode of a part: where its logged updates start in its part's log.
+    log_at: Vec<u32>,
+    /// Length of each part's log.
+    log_len: [usize; 2],
+    /// The forward top phase in supernode order: `(supernode, part)`, part 2 = top (run it),
+    /// 0 or 1 = apply its logged updates from that part's log.
+    merge: Vec<(u32, u8)>,
+}
+
+/// Most subtree expansions tried when the schedule of [`Split`] is chosen.
+const SPLIT_EXPANSIONS: usize = 256;
+/// A split is used only if its estimated time is below this fraction of the sequential one.
+const SPLIT_GAIN: f64 = 0.85;
+/// Factor entries below which the substitutions stay sequential (too little work to share).
+const SPLIT_MIN_WORK: usize = 20_000;
+/// Per-supernode overhead of a substitution step, in factor entries (for the schedule only).
+const NODE_COST: usize = 8;
+
+/// A raw pointer to the rows of the iterate or a log, shared by the two parts of a split
+/// substitution (which write disjoint rows).
+#[derive(Clone, Copy)]
+struct Rows(*mut [f32; 4]);
+// SAFETY: the two parts of a split substitution access disjoint rows (see `Split`).
+unsafe impl Send for Rows {}
+// SAFETY: as above.
+unsafe impl Sync for Rows {}
+
+/// One phase of a (split) substitution, see [`Split`].
+#[derive(Clone, Copy)]
+enum Phase {
+    /// The whole sequential substitution.
+    All,
+    /// Forward over part `0` or `1`, logging top updates to the pointer.
+    ForwardPart(usize, Rows),
+    /// The forward top phase, with the two parts' logs.
+    ForwardTop([Rows; 2]),
+    /// Backward over the top supernodes.
+    BackwardTop,
+    /// Backward over part `0` or `1`.
+    BackwardPart(usize),
 }
 
 impl Layout {
@@ -119,12 +186,18 @@ impl Layout {
         if nodes.iter().any(|s| s.start + s.size > n) || sn.row_idx().iter().any(|&r| r >= n) {
             return None;
         }
-        let rows = sn.row_idx().iter().map(|&r| r as u32).collect();
+        let rows: Vec<u32> = sn.row_idx().iter().map(|&r| r as u32).collect();
         let fwd = match symbolic.perm() {
             Some(p) => p.arrays().0.iter().map(|&i| i as u32).collect(),
             None => (0..n as u32).collect(),
         };
-        Some(Layout { nodes, rows, fwd })
+        let split = Split::new(&nodes, &rows, n);
+        Some(Layout {
+            nodes,
+            rows,
+            fwd,
+            split,
+        })
     }
 
     /// Solves `L L^T x = b` in place for the permuted right-hand sides `x` (four lanes per row:
@@ -132,26 +205,9 @@ impl Layout {
     /// of the diagonal block, then the rows below four at a time, each row's update summed over
     /// the block's columns before it is subtracted; backward, in reverse: the rows below four
     /// at a time subtracted from the block's columns, then the triangle. Every factor value is
-    /// read once per substitution for all three coordinates.
-    fn solve(&self, l: &[f32], x: &mut [[f32; 4]]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx") {
-            // SAFETY: the CPU has AVX (checked above).
-            return unsafe { self.solve_avx(l, x) };
-        }
-        self.solve_lanes(l, x);
-    }
-
-    /// [`Layout::solve`] compiled for AVX (VEX encodings, broadcasts from memory): the same
-    /// operations in the same order, so the same bits.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    unsafe fn solve_avx(&self, l: &[f32], x: &mut [[f32; 4]]) {
-        self.solve_lanes(l, x);
-    }
-
-    #[inline(always)]
-    fn solve_lanes(&self, l: &[f32], x: &mut [[f32; 4]]) {
+    /// read once per substitution for all three coordinates. With a [`Split`], on two threads
+    /// (the same operations per row in the same order). `logs`: scratch of the split.
+    fn solve(&self, l: &[f32], x: &mut [[f32; 4]], logs: &mut [Vec<[f32; 4]>; 2]) {
         assert_eq!(x.len(), self.fwd.len(), "one row per matrix row");
         assert!(
             self.nodes
@@ -159,85 +215,373 @@ impl Layout {
                 .is_none_or(|s| s.val + (s.size + s.m) * s.size <= l.len()),
             "factor values of the layout"
         );
-        let rows = &self.rows;
-        let xp = x.as_mut_ptr();
-        // SAFETY (all accesses through `xp` below): `Layout::new` checked that every row index
-        // in `rows` and every column `start..start + size` is below `n = x.len()`.
-        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
-        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
-        for s in &self.nodes {
-            let (ld, size, start, m) = (s.size + s.m, s.size, s.start, s.m);
-            let block = &l[s.val..s.val + ld * size];
-            let pat = &rows[s.pat..s.pat + m];
-            // SAFETY (all reads through `w`): the indices are `c * ld + r` with `c < size` and
-            // `r < ld`, inside `block`.
-            let bp = block.as_ptr();
-            let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
-            for c in 0..size {
-                let xc = at(start + c).div(w(c, c));
-                put(start + c, xc);
-                for r in c + 1..size {
-                    put(start + r, at(start + r).sub_scaled(w(c, r), xc));
-                }
-            }
-            let mut q = 0;
-            while q + 4 <= m {
-                let mut acc = [Lane::zero(); 4];
-                for c in 0..size {
-                    let xc = at(start + c);
-                    for (k, a) in acc.iter_mut().enumerate() {
-                        *a = a.add_scaled(w(c, size + q + k), xc);
+        let xp = Rows(x.as_mut_ptr());
+        let Some(split) = &self.split else {
+            // SAFETY: `x` has a row per matrix row (asserted), one thread.
+            unsafe { self.run(l, xp, Phase::All) };
+            return;
+        };
+        for (log, &len) in logs.iter_mut().zip(&split.log_len) {
+            log.resize(len, [0.0; 4]);
+        }
+        let lp = [Rows(logs[0].as_mut_ptr()), Rows(logs[1].as_mut_ptr())];
+        // SAFETY: `x` has a row per matrix row and the logs their parts' lengths; the two parts
+        // write disjoint rows and logs and read only rows no other phase running beside them
+        // writes (see `Split`).
+        unsafe {
+            rayon::join(
+                || self.run(l, xp, Phase::ForwardPart(0, lp[0])),
+                || self.run(l, xp, Phase::ForwardPart(1, lp[1])),
+            );
+            self.run(l, xp, Phase::ForwardTop(lp));
+            self.run(l, xp, Phase::BackwardTop);
+            rayon::join(
+                || self.run(l, xp, Phase::BackwardPart(0)),
+                || self.run(l, xp, Phase::BackwardPart(1)),
+            );
+        }
+    }
+
+    /// Runs `phase` of the substitution, with AVX when the CPU has it.
+    ///
+    /// # Safety
+    /// `xp` points to a row per matrix row, the phase's logs to their lengths; no other
+    /// thread accesses the rows this phase writes, or writes the rows it reads.
+    unsafe fn run(&self, l: &[f32], xp: Rows, phase: Phase) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx") {
+            // SAFETY: the CPU has AVX (checked above); the rest is the caller's.
+            return unsafe { self.run_avx(l, xp, phase) };
+        }
+        // SAFETY: the caller's.
+        unsafe { self.run_lanes(l, xp, phase) }
+    }
+
+    /// [`Layout::run`] compiled for AVX (VEX encodings, broadcasts from memory): the same
+    /// operations in the same order, so the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn run_avx(&self, l: &[f32], xp: Rows, phase: Phase) {
+        // SAFETY: the caller's.
+        unsafe { self.run_lanes(l, xp, phase) }
+    }
+
+    #[inline(always)]
+    unsafe fn run_lanes(&self, l: &[f32], xp: Rows, phase: Phase) {
+        let nodes = &self.nodes;
+        // SAFETY (all calls below): the caller's, and `Layout::new`/`Split::new` checked the
+        // indices.
+        unsafe {
+            match phase {
+                Phase::All => {
+                    for s in nodes {
+                        self.forward(l, xp.0, s, s.m, std::ptr::null_mut());
+                    }
+                    for s in nodes.iter().rev() {
+                        self.backward(l, xp.0, s);
                     }
                 }
-                for (k, a) in acc.iter().enumerate() {
-                    let i = pat[q + k] as usize;
-                    put(i, at(i).sub(*a));
+                Phase::ForwardPart(part, log) => {
+                    let sp = self.split.as_ref().expect("split");
+                    for &k in &sp.parts[part] {
+                        let k = k as usize;
+                        let lg = log.0.add(sp.log_at[k] as usize);
+                        self.forward(l, xp.0, &nodes[k], sp.own[k] as usize, lg);
+                    }
                 }
-                q += 4;
+                Phase::ForwardTop(logs) => {
+                    let sp = self.split.as_ref().expect("split");
+                    for &(k, part) in &sp.merge {
+                        let (k, part) = (k as usize, part as usize);
+                        let s = &nodes[k];
+                        if part == 2 {
+                            self.forward(l, xp.0, s, s.m, std::ptr::null_mut());
+                            continue;
+                        }
+                        let own = sp.own[k] as usize;
+                        let lg = logs[part].0.add(sp.log_at[k] as usize);
+                        for (j, &i) in self.rows[s.pat + own..s.pat + s.m].iter().enumerate() {
+                            let p = xp.0.add(i as usize);
+                            Lane::load(p).sub(Lane::load(lg.add(j))).store(p);
+                        }
+                    }
+                }
+                Phase::BackwardTop => {
+                    let sp = self.split.as_ref().expect("split");
+                    for &k in sp.top.iter().rev() {
+                        self.backward(l, xp.0, &nodes[k as usize]);
+                    }
+                }
+                Phase::BackwardPart(part) => {
+                    let sp = self.split.as_ref().expect("split");
+                    for &k in sp.parts[part].iter().rev() {
+                        self.backward(l, xp.0, &nodes[k as usize]);
+                    }
+                }
             }
-            for q in q..m {
-                let mut acc = Lane::zero();
-                for c in 0..size {
-                    acc = acc.add_scaled(w(c, size + q), at(start + c));
-                }
+        }
+    }
+
+    /// The forward step of supernode `s`: the dense triangle, then the rows below; the updates
+    /// of the first `own` rows below are subtracted in place, those of the others written to
+    /// `log` in row order.
+    ///
+    /// # Safety
+    /// As [`Layout::run`]; `log` has room for `s.m - own` rows.
+    #[inline(always)]
+    unsafe fn forward(
+        &self,
+        l: &[f32],
+        xp: *mut [f32; 4],
+        s: &Supernode,
+        own: usize,
+        log: *mut [f32; 4],
+    ) {
+        let (ld, size, start, m) = (s.size + s.m, s.size, s.start, s.m);
+        let block = &l[s.val..s.val + ld * size];
+        let pat = &self.rows[s.pat..s.pat + m];
+        // SAFETY (all accesses through `xp`): `Layout::new` checked that every row index in
+        // `rows` and every column `start..start + size` is below `n`.
+        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
+        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
+        // Row `q` below the block: in place, or logged.
+        let update = |q: usize, acc: Lane| {
+            if q < own {
                 let i = pat[q] as usize;
                 put(i, at(i).sub(acc));
+            } else {
+                // SAFETY: the caller's (`q - own < m - own`).
+                unsafe { acc.store(log.add(q - own)) }
+            }
+        };
+        // SAFETY (all reads through `w`): the indices are `c * ld + r` with `c < size` and
+        // `r < ld`, inside `block`.
+        let bp = block.as_ptr();
+        let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
+        for c in 0..size {
+            let xc = at(start + c).div(w(c, c));
+            put(start + c, xc);
+            for r in c + 1..size {
+                put(start + r, at(start + r).sub_scaled(w(c, r), xc));
             }
         }
-        for s in self.nodes.iter().rev() {
-            let (ld, size, start, m) = (s.size + s.m, s.size, s.start, s.m);
-            let block = &l[s.val..s.val + ld * size];
-            let pat = &rows[s.pat..s.pat + m];
-            // SAFETY: as in the forward substitution.
-            let bp = block.as_ptr();
-            let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
-            let mut q = 0;
-            while q + 4 <= m {
-                let xr = [0, 1, 2, 3].map(|k| at(pat[q + k] as usize));
-                for c in 0..size {
-                    let r = size + q;
-                    let sum = xr[0]
-                        .scaled(w(c, r))
-                        .add(xr[1].scaled(w(c, r + 1)))
-                        .add(xr[2].scaled(w(c, r + 2)).add(xr[3].scaled(w(c, r + 3))));
-                    put(start + c, at(start + c).sub(sum));
-                }
-                q += 4;
-            }
-            for q in q..m {
-                let xr = at(pat[q] as usize);
-                for c in 0..size {
-                    put(start + c, at(start + c).sub_scaled(w(c, size + q), xr));
+        let mut q = 0;
+        while q + 4 <= m {
+            let mut acc = [Lane::zero(); 4];
+            for c in 0..size {
+                let xc = at(start + c);
+                for (k, a) in acc.iter_mut().enumerate() {
+                    *a = a.add_scaled(w(c, size + q + k), xc);
                 }
             }
-            for c in (0..size).rev() {
-                let mut xc = at(start + c);
-                for r in c + 1..size {
-                    xc = xc.sub_scaled(w(c, r), at(start + r));
-                }
-                put(start + c, xc.div(w(c, c)));
+            for (k, a) in acc.iter().enumerate() {
+                update(q + k, *a);
+            }
+            q += 4;
+        }
+        for q in q..m {
+            let mut acc = Lane::zero();
+            for c in 0..size {
+                acc = acc.add_scaled(w(c, size + q), at(start + c));
+            }
+            update(q, acc);
+        }
+    }
+
+    /// The backward step of supernode `s`: the rows below, then the triangle.
+    ///
+    /// # Safety
+    /// As [`Layout::run`].
+    #[inline(always)]
+    unsafe fn backward(&self, l: &[f32], xp: *mut [f32; 4], s: &Supernode) {
+        let (ld, size, start, m) = (s.size + s.m, s.size, s.start, s.m);
+        let block = &l[s.val..s.val + ld * size];
+        let pat = &self.rows[s.pat..s.pat + m];
+        // SAFETY: as in the forward step.
+        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
+        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
+        let bp = block.as_ptr();
+        let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
+        let mut q = 0;
+        while q + 4 <= m {
+            let xr = [0, 1, 2, 3].map(|k| at(pat[q + k] as usize));
+            for c in 0..size {
+                let r = size + q;
+                let sum = xr[0]
+                    .scaled(w(c, r))
+                    .add(xr[1].scaled(w(c, r + 1)))
+                    .add(xr[2].scaled(w(c, r + 2)).add(xr[3].scaled(w(c, r + 3))));
+                put(start + c, at(start + c).sub(sum));
+            }
+            q += 4;
+        }
+        for q in q..m {
+            let xr = at(pat[q] as usize);
+            for c in 0..size {
+                put(start + c, at(start + c).sub_scaled(w(c, size + q), xr));
             }
         }
+        for c in (0..size).rev() {
+            let mut xc = at(start + c);
+            for r in c + 1..size {
+                xc = xc.sub_scaled(w(c, r), at(start + r));
+            }
+            put(start + c, xc.div(w(c, c)));
+        }
+    }
+}
+
+impl Split {
+    /// The schedule for the supernodes `nodes` (rows below their blocks in `rows`, `n`
+    /// matrix rows), or `None` when it would not be worth a second thread (small systems,
+    /// a tree without two heavy independent branches). Estimated work of a supernode: its
+    /// factor entries plus [`NODE_COST`]. The top grows by the heaviest hanging subtree's root,
+    /// one at a time ([`SPLIT_EXPANSIONS`] at most); the hanging subtrees are dealt heaviest
+    /// first to the lighter part; the cut with the least `top + max(part)` is kept.
+    fn new(nodes: &[Supernode], rows: &[u32], n: usize) -> Option<Split> {
+        let ns = nodes.len();
+        let mut owner = vec![u32::MAX; n];
+        for (k, s) in nodes.iter().enumerate() {
+            owner[s.start..s.start + s.size].fill(k as u32);
+        }
+        if owner.contains(&u32::MAX) {
+            return None;
+        }
+        let parent: Vec<usize> = nodes
+            .iter()
+            .map(|s| {
+                if s.m == 0 {
+                    usize::MAX
+                } else {
+                    owner[rows[s.pat] as usize] as usize
+                }
+            })
+            .collect();
+        if parent
+            .iter()
+            .enumerate()
+            .any(|(k, &p)| p != usize::MAX && p <= k)
+        {
+            return None;
+        }
+        let work: Vec<usize> = nodes
+            .iter()
+            .map(|s| s.size * (s.size + 1) / 2 + s.size * s.m + NODE_COST)
+            .collect();
+        let total: usize = work.iter().sum();
+        if total < SPLIT_MIN_WORK {
+            return None;
+        }
+        let mut sub = work.clone();
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); ns];
+        for k in 0..ns {
+            if parent[k] != usize::MAX {
+                sub[parent[k]] += sub[k];
+                children[parent[k]].push(k);
+            }
+        }
+        // Deals the hanging subtrees heaviest first (ties: lower index) to the lighter part
+        // (ties: part 0); returns each subtree's part and the heavier part's work.
+        let deal = |hanging: &[usize]| -> (Vec<(usize, u8)>, usize) {
+            let mut h = hanging.to_vec();
+            h.sort_unstable_by_key(|&r| (std::cmp::Reverse(sub[r]), r));
+            let mut load = [0usize; 2];
+            let out = h
+                .into_iter()
+                .map(|r| {
+                    let p = usize::from(load[1] < load[0]);
+                    load[p] += sub[r];
+                    (r, p as u8)
+                })
+                .collect();
+            (out, load[0].max(load[1]))
+        };
+        let mut hanging: Vec<usize> = (0..ns).filter(|&k| parent[k] == usize::MAX).collect();
+        let mut expanded = Vec::new();
+        let mut top_work = 0;
+        let mut best = (total, usize::MAX);
+        for step in 0..=SPLIT_EXPANSIONS {
+            let cost = top_work + deal(&hanging).1;
+            if cost < best.0 {
+                best = (cost, step);
+            }
+            let Some((i, &r)) = hanging
+                .iter()
+                .enumerate()
+                .max_by_key(|&(_, &r)| (sub[r], std::cmp::Reverse(r)))
+            else {
+                break;
+            };
+            hanging.swap_remove(i);
+            top_work += work[r];
+            expanded.push(r);
+            hanging.extend(&children[r]);
+        }
+        if best.1 == usize::MAX || (best.0 as f64) > SPLIT_GAIN * total as f64 {
+            return None;
+        }
+        let mut is_top = vec![false; ns];
+        for &r in &expanded[..best.1] {
+            is_top[r] = true;
+        }
+        let hanging: Vec<usize> = (0..ns)
+            .filter(|&k| !is_top[k] && (parent[k] == usize::MAX || is_top[parent[k]]))
+            .collect();
+        const TOP: u8 = 2;
+        let mut part = vec![TOP; ns];
+        for (r, p) in deal(&hanging).0 {
+            part[r] = p;
+        }
+        for k in (0..ns).rev() {
+            if !is_top[k] && part[k] == TOP {
+                // Not a hanging root: its parent (higher index) has its part already.
+                part[k] = part[parent[k]];
+            }
+        }
+        let mut own = vec![0u32; ns];
+        let mut log_at = vec![0u32; ns];
+        let mut log_len = [0usize; 2];
+        let mut parts: [Vec<u32>; 2] = [Vec::new(), Vec::new()];
+        let mut top = Vec::new();
+        let mut merge = Vec::new();
+        for (k, s) in nodes.iter().enumerate() {
+            if part[k] == TOP {
+                top.push(k as u32);
+                merge.push((k as u32, TOP));
+                continue;
+            }
+            let pat = &rows[s.pat..s.pat + s.m];
+            let p = part[k] as usize;
+            // The rows below belong to ancestors: the own part's first, then the top's.
+            let h = pat
+                .iter()
+                .take_while(|&&i| part[owner[i as usize] as usize] != TOP)
+                .count();
+            if pat[..h]
+                .iter()
+                .any(|&i| part[owner[i as usize] as usize] as usize != p)
+                || pat[h..]
+                    .iter()
+                    .any(|&i| part[owner[i as usize] as usize] != TOP)
+            {
+                return None;
+            }
+            own[k] = h as u32;
+            log_at[k] = log_len[p] as u32;
+            log_len[p] += s.m - h;
+            parts[p].push(k as u32);
+            if h < s.m {
+                merge.push((k as u32, p as u8));
+            }
+        }
+        Some(Split {
+            parts,
+            top,
+            own,
+            log_at,
+            log_len,
+            merge,
+        })
     }
 }
 
@@ -420,7 +764,7 @@ impl ScalarCholesky {
         let layout = Layout::new(&symbolic, n);
         Some(ScalarCholesky {
             layout,
-            lanes: std::sync::Mutex::new((Vec::new(), Vec::new())),
+            lanes: std::sync::Mutex::new((Vec::new(), Vec::new(), [Vec::new(), Vec::new()])),
             n,
             values: vec![0.0; row_idx.len()],
             factor: vec![0.0; symbolic.len_val()],
@@ -541,7 +885,7 @@ impl ScalarCholesky {
             // as lanes of one pass over the factor (faer's solve per column group spends most
             // of its time outside the arithmetic at this size).
             let mut guard = self.lanes.lock().unwrap_or_else(|e| e.into_inner());
-            let (b, x) = &mut *guard;
+            let (b, x, logs) = &mut *guard;
             b.resize(n, [0.0; 4]);
             x.resize(n, [0.0; 4]);
             b.par_chunks_mut(RHS_CHUNK).enumerate().for_each(|(c, bs)| {
@@ -553,7 +897,7 @@ impl ScalarCholesky {
             for (xi, &f) in x.iter_mut().zip(&layout.fwd) {
                 *xi = b[f as usize];
             }
-            layout.solve(&self.factor32, x);
+            layout.solve(&self.factor32, x, logs);
             for (xi, &f) in x.iter().zip(&layout.fwd) {
                 out[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
             }
@@ -847,6 +1191,94 @@ mod tests {
                     prop_assert!((want[i] - z[i][c]).abs() <= 1e-6 * cond * scale,
                         "row {} coordinate {}: {} vs {} (cond {})", i, c, z[i][c], want[i], cond);
                 }
+            }
+        }
+    }
+
+    /// A grid-graph pattern of `w x h` nodes (each joined to its right, upper and upper-right
+    /// neighbours), like the triangle meshes of the simulator.
+    fn grid_pattern(w: usize, h: usize) -> BsrPattern {
+        let id = |x: usize, y: usize| (y * w + x) as u32;
+        let mut pairs = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                for (dx, dy) in [(1, 0), (0, 1), (1, 1)] {
+                    if x + dx < w && y + dy < h {
+                        pairs.push((id(x, y), id(x + dx, y + dy)));
+                        pairs.push((id(x + dx, y + dy), id(x, y)));
+                    }
+                }
+            }
+        }
+        BsrPattern::from_pairs(w * h, pairs)
+    }
+
+    /// The two-thread substitution of a [`Split`] against the sequential one on the same
+    /// factor (the whole substitution in supernode order on one thread): the same bits, on a
+    /// pool of one thread and of two; and against faer's double-precision solve within
+    /// single-precision rounding. Grids large enough for a split, with fixed nodes.
+    #[test]
+    fn split_substitution_equals_the_sequential_one() {
+        for (seed, (w, h)) in [(40usize, 40usize), (70, 25), (33, 51)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed as u64);
+            let n = w * h;
+            let pattern = grid_pattern(w, h);
+            let (_, values, fixed) = random_spd(&pattern, &mut rng, -1.0..0.0, 0.05, 0.1..1.0);
+            let r: Vec<Vec3> = (0..n)
+                .map(|_| {
+                    Vec3::new(
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                    )
+                })
+                .collect();
+            let mut chol =
+                ScalarCholesky::with_threshold(&pattern, SupernodalThreshold::FORCE_SUPERNODAL)
+                    .unwrap();
+            assert!(chol.factor(&pattern, &values, &fixed));
+            let layout = chol.layout.as_ref().unwrap();
+            let split = layout.split.as_ref().expect("a split at this size");
+            assert!(split.parts.iter().all(|p| !p.is_empty()) && !split.top.is_empty());
+            let mut x: Vec<[f32; 4]> = layout
+                .fwd
+                .iter()
+                .map(|&f| {
+                    let v = r[f as usize];
+                    [v.x as f32, v.y as f32, v.z as f32, 0.0]
+                })
+                .collect();
+            // SAFETY: a row per matrix row, one thread.
+            unsafe { layout.run(&chol.factor32, Rows(x.as_mut_ptr()), Phase::All) };
+            let mut want = vec![Vec3::zeros(); n];
+            for (xi, &f) in x.iter().zip(&layout.fwd) {
+                want[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
+            }
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let mut got = vec![Vec3::zeros(); n];
+                pool.install(|| chol.solve_increment_with(|i| r[i], &mut got));
+                for i in 0..n {
+                    for c in 0..3 {
+                        assert_eq!(
+                            got[i][c].to_bits(),
+                            want[i][c].to_bits(),
+                            "grid {w}x{h}, {threads} threads, row {i}"
+                        );
+                    }
+                }
+            }
+            let mut exact = r.clone();
+            chol.solve3(&mut exact);
+            let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.amax()));
+            for i in 0..n {
+                assert!((want[i] - exact[i]).amax() <= 1e-4 * scale, "row {i}");
             }
         }
     }

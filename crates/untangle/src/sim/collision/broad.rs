@@ -66,18 +66,24 @@ impl BroadPhase {
             .with_min_len(1024)
             .map(|p| swept(scene, v, [p], 0.0))
             .collect();
-        let tri: Vec<Aabb> = scene
-            .triangles
-            .par_iter()
-            .with_min_len(1024)
-            .map(|t| union_of(&vert, t).inflated(margin))
-            .collect();
-        let edge: Vec<Aabb> = scene
-            .edges
-            .par_iter()
-            .with_min_len(1024)
-            .map(|e| union_of(&vert, e).inflated(0.5 * margin))
-            .collect();
+        let (tri, edge): (Vec<Aabb>, Vec<Aabb>) = rayon::join(
+            || {
+                scene
+                    .triangles
+                    .par_iter()
+                    .with_min_len(1024)
+                    .map(|t| union_of(&vert, t).inflated(margin))
+                    .collect()
+            },
+            || {
+                scene
+                    .edges
+                    .par_iter()
+                    .with_min_len(1024)
+                    .map(|e| union_of(&vert, e).inflated(0.5 * margin))
+                    .collect()
+            },
+        );
         let obs = scene.obstacles;
         let fresh = !self.built || rebuild || self.obstacle_count != obs.triangles.len();
         let (obs_tri, obs_edge, obs_vert): (Vec<Aabb>, Vec<Aabb>, Vec<Aabb>) = if obs.is_empty() {
@@ -100,19 +106,23 @@ impl BroadPhase {
                     .collect(),
             )
         };
+        // The cloth hierarchies side by side (each also splits its own work).
         if fresh {
-            self.tri = build(&tri);
-            self.edge = build(&edge);
-            self.vert = build(&vert);
+            (self.tri, (self.edge, self.vert)) = rayon::join(
+                || build(&tri),
+                || rayon::join(|| build(&edge), || build(&vert)),
+            );
             self.obs_tri = build(&obs_tri);
             self.obs_edge = build(&obs_edge);
             self.obs_vert = build(&obs_vert);
             self.built = true;
             self.obstacle_count = obs.triangles.len();
         } else {
-            self.tri.refit(&tri);
-            self.edge.refit(&edge);
-            self.vert.refit(&vert);
+            let (t, e, v) = (&mut self.tri, &mut self.edge, &mut self.vert);
+            rayon::join(
+                || t.refit(&tri),
+                || rayon::join(|| e.refit(&edge), || v.refit(&vert)),
+            );
             self.obs_tri.refit(&obs_tri);
             self.obs_edge.refit(&obs_edge);
             self.obs_vert.refit(&obs_vert);
@@ -165,9 +175,12 @@ impl BroadPhase {
                     *b = union_of(vert, e).inflated(0.5 * margin);
                 }
             });
-        self.tri.refit(&self.tri_boxes);
-        self.edge.refit(&self.edge_boxes);
-        self.vert.refit(&self.vert_boxes);
+        let (t, e, vb) = (&mut self.tri, &mut self.edge, &mut self.vert);
+        let (tb, eb, vbb) = (&self.tri_boxes, &self.edge_boxes, &self.vert_boxes);
+        rayon::join(
+            || t.refit(tb),
+            || rayon::join(|| e.refit(eb), || vb.refit(vbb)),
+        );
     }
 
     /// The candidate pairs of [`BroadPhase::candidates`] that have at least one cloth vertex
@@ -289,50 +302,59 @@ impl BroadPhase {
         // obstacle pairs from a query per vertex; then ordered by vertex, kind, triangle, as a
         // per-vertex enumeration with sorted results gives them. Key: vertex (bits 33..),
         // obstacle flag (bit 32), triangle (bits 0..32).
-        let mut keys: Vec<u64> = self.vert.cross_pairs(&self.tri, |p, t, o: &mut Vec<u64>| {
-            if !scene.triangles[t as usize].contains(&p) {
-                o.push(((p as u64) << 33) | t as u64);
+        let vertex_pairs = || -> Vec<Pair> {
+            let mut keys: Vec<u64> = self.vert.cross_pairs(&self.tri, |p, t, o: &mut Vec<u64>| {
+                // Not a corner (spelled out: `contains` became a call in this closure).
+                let c = scene.triangles[t as usize];
+                if c[0] != p && c[1] != p && c[2] != p {
+                    o.push(((p as u64) << 33) | t as u64);
+                }
+            });
+            if !obs.is_empty() {
+                keys.par_extend(
+                    (0..n as u32)
+                        .into_par_iter()
+                        .with_min_len(256)
+                        .flat_map_iter(|p| {
+                            let bo = self.vert_boxes[p as usize].inflated(margin);
+                            let mut local = Vec::new();
+                            self.obs_tri.query(&bo, |t| {
+                                local.push(((p as u64) << 33) | (1 << 32) | t as u64);
+                            });
+                            local
+                        }),
+                );
             }
-        });
-        if !obs.is_empty() {
-            keys.par_extend(
-                (0..n as u32)
-                    .into_par_iter()
-                    .with_min_len(256)
-                    .flat_map_iter(|p| {
-                        let bo = self.vert_boxes[p as usize].inflated(margin);
-                        let mut local = Vec::new();
-                        self.obs_tri.query(&bo, |t| {
-                            local.push(((p as u64) << 33) | (1 << 32) | t as u64);
-                        });
-                        local
-                    }),
-            );
-        }
-        crate::radix::sort_by_key(&mut keys, |k| *k);
-        let mut out: Vec<Pair> = keys
-            .iter()
-            .map(|&k| Pair {
-                kind: if k & (1 << 32) == 0 {
-                    PairKind::VertexTriangle
-                } else {
-                    PairKind::VertexObstacle
-                },
-                a: (k >> 33) as u32,
-                b: k as u32,
-            })
-            .collect();
+            crate::radix::sort_by_key(&mut keys, |k| *k);
+            keys.iter()
+                .map(|&k| Pair {
+                    kind: if k & (1 << 32) == 0 {
+                        PairKind::VertexTriangle
+                    } else {
+                        PairKind::VertexObstacle
+                    },
+                    a: (k >> 33) as u32,
+                    b: k as u32,
+                })
+                .collect()
+        };
         // Edge-edge pairs sorted by (edge, edge): the order reaches the decisions (proximity's
         // Gauss-Seidel sweeps, the resting contacts), so it must not depend on the tree.
         let edges = scene.edges;
-        let mut ee: Vec<(u32, u32)> = self.edge.self_pairs(|i, j, o: &mut Vec<(u32, u32)>| {
-            let (e, f) = (edges[i as usize], edges[j as usize]);
-            if e[0] != f[0] && e[0] != f[1] && e[1] != f[0] && e[1] != f[1] {
-                o.push((i.min(j), i.max(j)));
-            }
-        });
         let ne = edges.len();
-        crate::radix::sort_by_bucket_then_key(&mut ee, (ne, ne), |p| p.0, |p| p.1);
+        let edge_pairs = || -> Vec<(u32, u32)> {
+            let mut ee: Vec<(u32, u32)> = self.edge.self_pairs(|i, j, o: &mut Vec<(u32, u32)>| {
+                let (e, f) = (edges[i as usize], edges[j as usize]);
+                if e[0] != f[0] && e[0] != f[1] && e[1] != f[0] && e[1] != f[1] {
+                    o.push((i.min(j), i.max(j)));
+                }
+            });
+            crate::radix::sort_by_bucket_then_key(&mut ee, (ne, ne), |p| p.0, |p| p.1);
+            ee
+        };
+        // The two kinds side by side (their sequential sorts overlap the other's traversal).
+        let (mut out, ee) = rayon::join(vertex_pairs, edge_pairs);
+        out.reserve(ee.len());
         out.extend(ee.into_iter().map(|(a, b)| Pair {
             kind: PairKind::EdgeEdge,
             a,
