@@ -330,16 +330,7 @@ pub fn solve(
         let alpha = delta_new / cq;
         // x += alpha c, r -= alpha q, s = filtered block-Jacobi of r, and r . s.
         let mut rs_dot: f64 = if amg.is_some() || chol.is_some() {
-            x.par_chunks_mut(CHUNK)
-                .zip(r.par_chunks_mut(CHUNK))
-                .enumerate()
-                .for_each(|(ch, (xs, rs))| {
-                    for k in 0..xs.len() {
-                        let i = ch * CHUNK + k;
-                        xs[k] += alpha * c[i];
-                        rs[k] -= alpha * q[i];
-                    }
-                });
+            advance(x, &mut r, &c, &q, alpha);
             match (amg, chol) {
                 (Some(m), _) => m.apply(&r, &mut s),
                 (None, Some(f)) => f.apply(&r, filter, &mut s),
@@ -376,12 +367,7 @@ pub fn solve(
         let delta_old = delta_new;
         delta_new = rs_dot;
         let beta = delta_new / delta_old;
-        c.par_chunks_mut(CHUNK).enumerate().for_each(|(ch, cs)| {
-            for (k, ci) in cs.iter_mut().enumerate() {
-                let i = ch * CHUNK + k;
-                *ci = filter[i].apply(s[i] + beta * *ci);
-            }
-        });
+        new_direction(&mut c, &s, filter, beta);
         it += 1;
     }
     PcgResult {
@@ -389,6 +375,32 @@ pub fn solve(
         relative_residual: rel(delta_new),
         converged: delta_new <= threshold,
     }
+}
+
+/// One CG update of the iterate and the residual: `x += alpha c`, `r -= alpha q` (in fixed
+/// chunks, so the result does not depend on the thread count).
+fn advance(x: &mut [Vec3], r: &mut [Vec3], c: &[Vec3], q: &[Vec3], alpha: f64) {
+    x.par_chunks_mut(CHUNK)
+        .zip(r.par_chunks_mut(CHUNK))
+        .enumerate()
+        .for_each(|(ch, (xs, rs))| {
+            for k in 0..xs.len() {
+                let i = ch * CHUNK + k;
+                xs[k] += alpha * c[i];
+                rs[k] -= alpha * q[i];
+            }
+        });
+}
+
+/// The next CG search direction `c = S (s + beta c)` (Baraff & Witkin 1998, Sec. 5.3: the
+/// filter keeps it in the free directions).
+fn new_direction(c: &mut [Vec3], s: &[Vec3], filter: &[Filter], beta: f64) {
+    c.par_chunks_mut(CHUNK).enumerate().for_each(|(ch, cs)| {
+        for (k, ci) in cs.iter_mut().enumerate() {
+            let i = ch * CHUNK + k;
+            *ci = filter[i].apply(s[i] + beta * *ci);
+        }
+    });
 }
 
 /// Which substitution applies the factor in [`solve_factored`].
@@ -513,16 +525,7 @@ pub fn solve_factored(
             break;
         }
         let alpha = delta_new / cq;
-        x.par_chunks_mut(CHUNK)
-            .zip(r.par_chunks_mut(CHUNK))
-            .enumerate()
-            .for_each(|(ch, (xs, rs))| {
-                for k in 0..xs.len() {
-                    let i = ch * CHUNK + k;
-                    xs[k] += alpha * c[i];
-                    rs[k] -= alpha * q[i];
-                }
-            });
+        advance(x, &mut r, &c, &q, alpha);
         let rs_dot = apply_factor(factor, how, &r, filter, &mut s);
         if rs_dot.is_nan() || rs_dot < 0.0 {
             delta_new = f64::INFINITY;
@@ -531,12 +534,7 @@ pub fn solve_factored(
         let delta_old = delta_new;
         delta_new = rs_dot;
         let beta = delta_new / delta_old;
-        c.par_chunks_mut(CHUNK).enumerate().for_each(|(ch, cs)| {
-            for (k, ci) in cs.iter_mut().enumerate() {
-                let i = ch * CHUNK + k;
-                *ci = filter[i].apply(s[i] + beta * *ci);
-            }
-        });
+        new_direction(&mut c, &s, filter, beta);
         it += 1;
     }
     PcgResult {
