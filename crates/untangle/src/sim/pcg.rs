@@ -403,6 +403,25 @@ fn new_direction(c: &mut [Vec3], s: &[Vec3], filter: &[Filter], beta: f64) {
     });
 }
 
+/// `v = S v` (the constraint filter) and returns `w . v`, summed per fixed chunk in chunk order
+/// (independent of the thread count).
+fn filter_dot(v: &mut [Vec3], filter: &[Filter], w: &[Vec3]) -> f64 {
+    let parts: Vec<f64> = v
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .map(|(ch, vs)| {
+            let mut acc = 0.0;
+            for (k, vi) in vs.iter_mut().enumerate() {
+                let i = ch * CHUNK + k;
+                *vi = filter[i].apply(*vi);
+                acc += w[i].dot(vi);
+            }
+            acc
+        })
+        .collect();
+    parts.iter().sum()
+}
+
 /// Which substitution applies the factor in [`solve_factored`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FactorSolve {
@@ -434,20 +453,7 @@ pub fn apply_factor(
                     *o = f.apply(*ri);
                 }
             }
-            let parts: Vec<f64> = out
-                .par_chunks_mut(CHUNK)
-                .enumerate()
-                .map(|(c, os)| {
-                    let mut acc = 0.0;
-                    for (k, o) in os.iter_mut().enumerate() {
-                        let i = c * CHUNK + k;
-                        *o = filter[i].apply(*o);
-                        acc += r[i].dot(o);
-                    }
-                    acc
-                })
-                .collect();
-            parts.iter().sum()
+            filter_dot(out, filter, r)
         }
     }
 }
@@ -507,20 +513,7 @@ pub fn solve_factored(
     };
     while delta_new > threshold && it < settings.max_iterations {
         apply(&c, &mut q);
-        let parts: Vec<f64> = q
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .map(|(ch, qs)| {
-                let mut acc = 0.0;
-                for (k, qi) in qs.iter_mut().enumerate() {
-                    let i = ch * CHUNK + k;
-                    *qi = filter[i].apply(*qi);
-                    acc += c[i].dot(qi);
-                }
-                acc
-            })
-            .collect();
-        let cq: f64 = parts.iter().sum();
+        let cq = filter_dot(&mut q, filter, &c);
         if cq.is_nan() || cq <= 0.0 {
             break;
         }
