@@ -1026,7 +1026,15 @@ impl Simulator {
         }
         let degraded = !pd.factor_exact;
         let mut result = ProjectiveResult::default();
-        if pd.factor.is_none() || pd.key.as_ref() != Some(&key) || degraded {
+        let refactor = pd.factor.is_none() || pd.key.as_ref() != Some(&key) || degraded;
+        // The factorisation is sequential: it runs beside the rest of the set-up (energies,
+        // inertial target, contact search), which does not depend on it. The same arithmetic
+        // as one after the other.
+        let pinned = &key.pinned;
+        let factor_pd = |pd: &mut PdState| -> Option<f64> {
+            if !refactor {
+                return None;
+            }
             let tf = Instant::now();
             let pattern = pd.system.pattern();
             let mut f = match pd.factor.take() {
@@ -1034,49 +1042,26 @@ impl Simulator {
                 None => ScalarCholesky::new(pattern),
             };
             if let Some(fac) = &mut f {
-                if !fac.factor(pattern, &values, &self.pinned) {
+                if !fac.factor(pattern, &values, pinned) {
                     f = None;
                 }
             }
             pd.factor = f;
-            pd.key = Some(key);
             pd.factor_exact = pd.factor.is_some();
             pd.factored_values.clone_from(&values);
-            result.refactored = true;
-            result.factor_ms = tf.elapsed().as_secs_f64() * 1e3;
-        }
-        let energy = Energy {
-            kinetic: (0..n)
-                .map(|i| 0.5 * self.mass[i] * self.v[i].norm_squared())
-                .sum(),
-            stretch: self
-                .triangles
-                .par_iter()
-                .zip(&self.rest.triangles)
-                .with_min_len(256)
-                .map(|(t, r)| {
-                    let x = t.map(|k| &self.x[k as usize]);
-                    stretch_energy(r, x, p.stretch_stiffness, p.shear_stiffness)
-                })
-                // Summed in triangle order: rayon's parallel sum depends on the thread count.
-                .collect::<Vec<f64>>()
-                .iter()
-                .sum(),
-            bend: self
-                .rest
-                .bend
-                .iter()
-                .map(|s| s.energy(&self.x, p.bend_stiffness))
-                .sum(),
-            gravity: -(0..n)
-                .map(|i| self.mass[i] * p.gravity.dot(&self.x[i]))
-                .sum::<f64>(),
+            Some(tf.elapsed().as_secs_f64() * 1e3)
         };
-        let y: Vec<Vec3> = (0..n)
-            .map(|i| self.x[i] + (self.v[i] * h + p.gravity * (h * h)) / c_m)
-            .collect();
-        let v_pred: Vec<Vec3> = (0..n).map(|i| self.v[i] + self.dv_prev[i]).collect();
-        let (mut contacts, mut springs) = self.gather_contacts(policy, &v_pred, inv_mass);
+        let (factored, (energy, y, v_pred, (contacts, springs))) = rayon::join(
+            || factor_pd(&mut pd),
+            || self.prepare_projective(policy, inv_mass, c_m),
+        );
+        let mut contacts = contacts;
+        let mut springs = springs;
+        if let Some(ms) = factored {
+            pd.key = Some(key);
+            result.refactored = true;
+            result.factor_ms = ms;
+        }
         let t1 = Instant::now();
         let settings = PcgSettings {
             // Relative to the residual at the current iterate, without the Baraff & Witkin
@@ -1355,6 +1340,59 @@ impl Simulator {
             projective: Some(result),
             assembled: t1,
         }
+    }
+
+    /// The set-up of a projective step besides the factorisation ([`Simulator::solve_projective`]
+    /// runs the two side by side): the energies at the start, the inertial target `y`, the
+    /// predicted velocities and the contacts.
+    #[allow(clippy::type_complexity)]
+    fn prepare_projective(
+        &mut self,
+        policy: &dyn ContactPolicy,
+        inv_mass: &[f64],
+        c_m: f64,
+    ) -> (
+        Energy,
+        Vec<Vec3>,
+        Vec<Vec3>,
+        (Vec<ObstacleContact>, Vec<contact::ClothContact>),
+    ) {
+        let p = &self.params;
+        let h = p.dt;
+        let n = self.x.len();
+        let energy = Energy {
+            kinetic: (0..n)
+                .map(|i| 0.5 * self.mass[i] * self.v[i].norm_squared())
+                .sum(),
+            stretch: self
+                .triangles
+                .par_iter()
+                .zip(&self.rest.triangles)
+                .with_min_len(256)
+                .map(|(t, r)| {
+                    let x = t.map(|k| &self.x[k as usize]);
+                    stretch_energy(r, x, p.stretch_stiffness, p.shear_stiffness)
+                })
+                // Summed in triangle order: rayon's parallel sum depends on the thread count.
+                .collect::<Vec<f64>>()
+                .iter()
+                .sum(),
+            bend: self
+                .rest
+                .bend
+                .iter()
+                .map(|s| s.energy(&self.x, p.bend_stiffness))
+                .sum(),
+            gravity: -(0..n)
+                .map(|i| self.mass[i] * p.gravity.dot(&self.x[i]))
+                .sum::<f64>(),
+        };
+        let y: Vec<Vec3> = (0..n)
+            .map(|i| self.x[i] + (self.v[i] * h + p.gravity * (h * h)) / c_m)
+            .collect();
+        let v_pred: Vec<Vec3> = (0..n).map(|i| self.v[i] + self.dv_prev[i]).collect();
+        let contacts = self.gather_contacts(policy, &v_pred, inv_mass);
+        (energy, y, v_pred, contacts)
     }
 
     /// The contacts of the implicit solve (see `contact`): obstacle contacts as constraints,
