@@ -1040,7 +1040,7 @@ impl ScalarCholesky {
             // Our own supernodal substitutions on faer's factor layout, the three coordinates
             // as lanes of one pass over the factor (faer's solve per column group spends most
             // of its time outside the arithmetic at this size).
-            let mut guard = self.lanes.lock().unwrap_or_else(|e| e.into_inner());
+            let mut guard = scratch(&self.lanes, Default::default);
             let (b, x, logs) = &mut *guard;
             b.resize(n, [0.0; 4]);
             x.resize(n, [0.0; 4]);
@@ -1059,10 +1059,13 @@ impl ScalarCholesky {
             }
             return;
         }
-        let mut guard = self
-            .solve_scratch32
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
+        let mut guard = scratch(&self.solve_scratch32, || {
+            (
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f32>(1, Par::Seq)),
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f32>(2, Par::Seq)),
+                Vec::new(),
+            )
+        });
         let (stack_x, stack, buf) = &mut *guard;
         buf.resize(3 * n, 0.0);
         fill_columns(buf, n, |v| v as f32, rhs);
@@ -1075,11 +1078,17 @@ impl ScalarCholesky {
 
     /// The solve scratch (two faer stacks and the `n x 3` column buffer, sized), or `None`
     /// without a factor.
-    fn solve_buffers(&self) -> Option<std::sync::MutexGuard<'_, SolveScratch>> {
+    fn solve_buffers(&self) -> Option<Scratch<'_, SolveScratch>> {
         if !self.factored {
             return None;
         }
-        let mut guard = self.solve_scratch.lock().unwrap_or_else(|e| e.into_inner());
+        let mut guard = scratch(&self.solve_scratch, || {
+            (
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)),
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(2, Par::Seq)),
+                Vec::new(),
+            )
+        });
         guard.2.resize(3 * self.n, 0.0);
         Some(guard)
     }
@@ -1144,6 +1153,45 @@ impl ScalarCholesky {
             acc += r[i].dot(o);
         }
         acc
+    }
+}
+
+/// A solve's scratch: the factor's own (locked), or a fresh one.
+enum Scratch<'a, T> {
+    Locked(std::sync::MutexGuard<'a, T>),
+    Fresh(T),
+}
+
+impl<T> std::ops::Deref for Scratch<'_, T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        match self {
+            Scratch::Locked(g) => g,
+            Scratch::Fresh(t) => t,
+        }
+    }
+}
+
+impl<T> std::ops::DerefMut for Scratch<'_, T> {
+    fn deref_mut(&mut self) -> &mut T {
+        match self {
+            Scratch::Locked(g) => g,
+            Scratch::Fresh(t) => t,
+        }
+    }
+}
+
+/// The scratch in `m` if it is free, else `fresh()`. A solve holds its scratch across
+/// `rayon::join` (the right-hand side's parallel evaluation, the two halves of a split
+/// substitution, faer's two column groups), and a thread waiting in `join` runs other tasks,
+/// which may solve with the same factor: waiting for the lock there would deadlock (and two
+/// threads solving at once would wait for each other). Every solve writes its scratch before
+/// reading it, so the results do not depend on which scratch it gets.
+fn scratch<T>(m: &std::sync::Mutex<T>, fresh: impl FnOnce() -> T) -> Scratch<'_, T> {
+    match m.try_lock() {
+        Ok(g) => Scratch::Locked(g),
+        Err(std::sync::TryLockError::Poisoned(e)) => Scratch::Locked(e.into_inner()),
+        Err(std::sync::TryLockError::WouldBlock) => Scratch::Fresh(fresh()),
     }
 }
 
@@ -1444,6 +1492,75 @@ mod tests {
             let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.amax()));
             for i in 0..n {
                 assert!((want[i] - exact[i]).amax() <= 1e-4 * scale, "row {i}");
+            }
+        }
+    }
+
+    /// A solve started while another solve with the same factor holds its scratch (here from
+    /// the outer solve's right-hand side, as a task run by a thread waiting in `rayon::join`
+    /// would): no deadlock, and both give the bits of the same solve run alone. Supernodal
+    /// (own substitution, with a split) and simplicial (faer) factors, single and double
+    /// precision, on one thread and on two.
+    #[test]
+    fn solves_nested_in_a_solve_give_the_same_bits() {
+        let (w, h) = (40, 40);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let n = w * h;
+        let pattern = grid_pattern(w, h);
+        let (_, values, fixed) = random_spd(&pattern, &mut rng, -1.0..0.0, 0.05, 0.1..1.0);
+        let r: Vec<Vec3> = (0..n)
+            .map(|_| {
+                Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                )
+            })
+            .collect();
+        let s: Vec<Vec3> = r.iter().map(|v| Vec3::new(v.z, -v.x, 0.5 * v.y)).collect();
+        for supernodal in [
+            SupernodalThreshold::FORCE_SUPERNODAL,
+            SupernodalThreshold::FORCE_SIMPLICIAL,
+        ] {
+            let mut chol = ScalarCholesky::with_threshold(&pattern, supernodal).unwrap();
+            assert!(chol.factor(&pattern, &values, &fixed));
+            for increment in [true, false] {
+                let solve = |rhs: &(dyn Fn(usize) -> Vec3 + Sync), out: &mut [Vec3]| {
+                    if increment {
+                        chol.solve_increment_with(rhs, out)
+                    } else {
+                        chol.solve_with(rhs, out)
+                    }
+                };
+                let (mut want_r, mut want_s) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
+                solve(&|i| r[i], &mut want_r);
+                solve(&|i| s[i], &mut want_s);
+                for threads in [1, 2] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let inner = std::sync::Mutex::new(vec![Vec3::zeros(); n]);
+                    let mut outer = vec![Vec3::zeros(); n];
+                    pool.install(|| {
+                        solve(
+                            &|i| {
+                                if i == n / 2 {
+                                    solve(&|j| s[j], &mut inner.lock().unwrap());
+                                }
+                                r[i]
+                            },
+                            &mut outer,
+                        )
+                    });
+                    let inner = inner.into_inner().unwrap();
+                    for i in 0..n {
+                        for c in 0..3 {
+                            assert_eq!(outer[i][c].to_bits(), want_r[i][c].to_bits());
+                            assert_eq!(inner[i][c].to_bits(), want_s[i][c].to_bits());
+                        }
+                    }
+                }
             }
         }
     }
