@@ -12,7 +12,9 @@
 //! ([`ScalarCholesky::solve_increment_with`]) is our own substitution on faer's supernodal
 //! layout, the three coordinates as the lanes of one pass over the factor, each supernode's
 //! rows below the diagonal block four at a time (faer's solve of one or two columns spends most
-//! of its instructions outside the arithmetic at this size; branch sim9, BENCHMARKS.md). Large
+//! of its instructions outside the arithmetic at this size; branch sim9, BENCHMARKS.md), with
+//! AVX two rows (forward) or two columns (backward) per 8-wide register, lane by lane the same
+//! operations (branch sim11). Large
 //! factors run it on two threads: the elimination tree is cut into a top and two parts of
 //! hanging subtrees of about equal work, which are substituted side by side; the updates of
 //! the top rows are logged and applied in supernode order, so every row sees the same
