@@ -12,7 +12,9 @@
 //! ([`ScalarCholesky::solve_increment_with`]) is our own substitution on faer's supernodal
 //! layout, the three coordinates as the lanes of one pass over the factor, each supernode's
 //! rows below the diagonal block four at a time (faer's solve of one or two columns spends most
-//! of its instructions outside the arithmetic at this size; branch sim9, BENCHMARKS.md). Large
+//! of its instructions outside the arithmetic at this size; branch sim9, BENCHMARKS.md), with
+//! AVX two rows (forward) or two columns (backward) per 8-wide register, lane by lane the same
+//! operations (branch sim11). Large
 //! factors run it on two threads: the elimination tree is cut into a top and two parts of
 //! hanging subtrees of about equal work, which are substituted side by side; the updates of
 //! the top rows are logged and applied in supernode order, so every row sees the same
@@ -254,20 +256,23 @@ impl Layout {
             return unsafe { self.run_avx(l, xp, phase) };
         }
         // SAFETY: the caller's.
-        unsafe { self.run_lanes(l, xp, phase) }
+        unsafe { self.run_lanes::<false>(l, xp, phase) }
     }
 
-    /// [`Layout::run`] compiled for AVX (VEX encodings, broadcasts from memory): the same
-    /// operations in the same order, so the same bits.
+    /// [`Layout::run`] compiled for AVX (VEX encodings, broadcasts from memory), two rows'
+    /// lanes per 8-wide register in the loops over the rows below the diagonal blocks (see
+    /// [`Wide`]): the same operations on every lane in the same order, so the same bits.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn run_avx(&self, l: &[f32], xp: Rows, phase: Phase) {
-        // SAFETY: the caller's.
-        unsafe { self.run_lanes(l, xp, phase) }
+        // SAFETY: the caller's; the CPU has AVX (this function's feature).
+        unsafe { self.run_lanes::<true>(l, xp, phase) }
     }
 
+    /// The substitution phases; `WIDE`: the loops over the rows below the diagonal blocks with
+    /// [`Wide`] (only inside a function compiled for AVX).
     #[inline(always)]
-    unsafe fn run_lanes(&self, l: &[f32], xp: Rows, phase: Phase) {
+    unsafe fn run_lanes<const WIDE: bool>(&self, l: &[f32], xp: Rows, phase: Phase) {
         let nodes = &self.nodes;
         // SAFETY (all calls below): the caller's, and `Layout::new`/`Split::new` checked the
         // indices.
@@ -275,10 +280,10 @@ impl Layout {
             match phase {
                 Phase::All => {
                     for s in nodes {
-                        self.forward(l, xp.0, s, s.m, std::ptr::null_mut());
+                        self.forward::<WIDE>(l, xp.0, s, s.m, std::ptr::null_mut());
                     }
                     for s in nodes.iter().rev() {
-                        self.backward(l, xp.0, s);
+                        self.backward::<WIDE>(l, xp.0, s);
                     }
                 }
                 Phase::ForwardPart(part, log) => {
@@ -286,7 +291,7 @@ impl Layout {
                     for &k in &sp.parts[part] {
                         let k = k as usize;
                         let lg = log.0.add(sp.log_at[k] as usize);
-                        self.forward(l, xp.0, &nodes[k], sp.own[k] as usize, lg);
+                        self.forward::<WIDE>(l, xp.0, &nodes[k], sp.own[k] as usize, lg);
                     }
                 }
                 Phase::ForwardTop(logs) => {
@@ -295,7 +300,7 @@ impl Layout {
                         let (k, part) = (k as usize, part as usize);
                         let s = &nodes[k];
                         if part == 2 {
-                            self.forward(l, xp.0, s, s.m, std::ptr::null_mut());
+                            self.forward::<WIDE>(l, xp.0, s, s.m, std::ptr::null_mut());
                             continue;
                         }
                         let own = sp.own[k] as usize;
@@ -309,13 +314,13 @@ impl Layout {
                 Phase::BackwardTop => {
                     let sp = self.split.as_ref().expect("split");
                     for &k in sp.top.iter().rev() {
-                        self.backward(l, xp.0, &nodes[k as usize]);
+                        self.backward::<WIDE>(l, xp.0, &nodes[k as usize]);
                     }
                 }
                 Phase::BackwardPart(part) => {
                     let sp = self.split.as_ref().expect("split");
                     for &k in sp.parts[part].iter().rev() {
-                        self.backward(l, xp.0, &nodes[k as usize]);
+                        self.backward::<WIDE>(l, xp.0, &nodes[k as usize]);
                     }
                 }
             }
@@ -329,7 +334,7 @@ impl Layout {
     /// # Safety
     /// As [`Layout::run`]; `log` has room for `s.m - own` rows.
     #[inline(always)]
-    unsafe fn forward(
+    unsafe fn forward<const WIDE: bool>(
         &self,
         l: &[f32],
         xp: *mut [f32; 4],
@@ -366,6 +371,29 @@ impl Layout {
             }
         }
         let mut q = 0;
+        #[cfg(target_arch = "x86_64")]
+        if WIDE {
+            // The same sums as below, rows `q, q + 1` and `q + 2, q + 3` in the halves of two
+            // 8-wide accumulators.
+            while q + 4 <= m {
+                // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads are those
+                // of `w` and `at` below.
+                let acc = unsafe {
+                    let mut acc = [Wide::zero(); 2];
+                    for c in 0..size {
+                        let xc = Wide::broadcast(xp.add(start + c));
+                        let wq = bp.add(c * ld + size + q);
+                        acc[0] = acc[0].add(Wide::spread(wq, 0).mul(xc));
+                        acc[1] = acc[1].add(Wide::spread(wq, 2).mul(xc));
+                    }
+                    [acc[0].low(), acc[0].high(), acc[1].low(), acc[1].high()]
+                };
+                for (k, a) in acc.iter().enumerate() {
+                    update(q + k, *a);
+                }
+                q += 4;
+            }
+        }
         while q + 4 <= m {
             let mut acc = [Lane::zero(); 4];
             for c in 0..size {
@@ -393,7 +421,7 @@ impl Layout {
     /// # Safety
     /// As [`Layout::run`].
     #[inline(always)]
-    unsafe fn backward(&self, l: &[f32], xp: *mut [f32; 4], s: &Supernode) {
+    unsafe fn backward<const WIDE: bool>(&self, l: &[f32], xp: *mut [f32; 4], s: &Supernode) {
         let (ld, size, start, m) = (s.size + s.m, s.size, s.start, s.m);
         let block = &l[s.val..s.val + ld * size];
         let pat = &self.rows[s.pat..s.pat + m];
@@ -403,6 +431,41 @@ impl Layout {
         let bp = block.as_ptr();
         let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
         let mut q = 0;
+        #[cfg(target_arch = "x86_64")]
+        if WIDE {
+            // The same sums as below for two columns at once (the halves of 8-wide registers),
+            // the last column of an odd block alone.
+            while q + 4 <= m {
+                let r = size + q;
+                // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads and writes
+                // are those of `w`, `at` and `put` below.
+                unsafe {
+                    let xr = [0, 1, 2, 3].map(|k| Wide::broadcast(xp.add(pat[q + k] as usize)));
+                    let mut c = 0;
+                    while c + 2 <= size {
+                        let wc = bp.add(c * ld + r);
+                        let wn = bp.add((c + 1) * ld + r);
+                        let f = |k: i32| Wide::pick(wc, wn, k);
+                        let sum = xr[0]
+                            .mul(f(0))
+                            .add(xr[1].mul(f(1)))
+                            .add(xr[2].mul(f(2)).add(xr[3].mul(f(3))));
+                        let p = xp.add(start + c);
+                        Wide::load(p).sub(sum).store(p);
+                        c += 2;
+                    }
+                    let xr = xr.map(|x| x.low());
+                    for c in c..size {
+                        let sum = xr[0]
+                            .scaled(w(c, r))
+                            .add(xr[1].scaled(w(c, r + 1)))
+                            .add(xr[2].scaled(w(c, r + 2)).add(xr[3].scaled(w(c, r + 3))));
+                        put(start + c, at(start + c).sub(sum));
+                    }
+                }
+                q += 4;
+            }
+        }
         while q + 4 <= m {
             let xr = [0, 1, 2, 3].map(|k| at(pat[q + k] as usize));
             for c in 0..size {
@@ -653,6 +716,101 @@ impl Lane {
     }
 }
 
+/// Two rows' [`Lane`]s in one 8-wide AVX register (low half, high half), for
+/// [`Layout::run_avx`]: every operation acts on each lane exactly as [`Lane`]'s (separate
+/// multiply and add, no fused multiply-add), so the results are the same bits.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct Wide(std::arch::x86_64::__m256);
+
+#[cfg(target_arch = "x86_64")]
+impl Wide {
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn zero() -> Wide {
+        Wide(std::arch::x86_64::_mm256_setzero_ps())
+    }
+    /// One row's four lanes in both halves.
+    ///
+    /// # Safety
+    /// `p` points to four readable `f32`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    unsafe fn broadcast(p: *const [f32; 4]) -> Wide {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller's.
+        Wide(unsafe { _mm256_broadcast_ps(&*(p as *const __m128)) })
+    }
+    /// Two consecutive rows.
+    ///
+    /// # Safety
+    /// `p` points to eight readable `f32`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    unsafe fn load(p: *const [f32; 4]) -> Wide {
+        // SAFETY: the caller's.
+        Wide(unsafe { std::arch::x86_64::_mm256_loadu_ps(p as *const f32) })
+    }
+    /// # Safety
+    /// `p` points to eight writable `f32`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    unsafe fn store(self, p: *mut [f32; 4]) {
+        // SAFETY: the caller's.
+        unsafe { std::arch::x86_64::_mm256_storeu_ps(p as *mut f32, self.0) }
+    }
+    /// `w[k]` in the low half's lanes and `w[k + 1]` in the high half's.
+    ///
+    /// # Safety
+    /// `w` points to four readable `f32`; `k` is 0, 1 or 2.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    unsafe fn spread(w: *const f32, k: i32) -> Wide {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller's.
+        let both = unsafe { _mm256_broadcast_ps(&*(w as *const __m128)) };
+        let pick = _mm256_setr_epi32(k, k, k, k, k + 1, k + 1, k + 1, k + 1);
+        Wide(_mm256_permutevar_ps(both, pick))
+    }
+    /// `a[k]` in the low half's lanes and `b[k]` in the high half's.
+    ///
+    /// # Safety
+    /// `a` and `b` point to four readable `f32`; `k` is below 4.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    unsafe fn pick(a: *const f32, b: *const f32, k: i32) -> Wide {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller's.
+        let ab = unsafe { _mm256_loadu2_m128(b, a) };
+        Wide(_mm256_permutevar_ps(ab, _mm256_set1_epi32(k)))
+    }
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn mul(self, b: Wide) -> Wide {
+        Wide(std::arch::x86_64::_mm256_mul_ps(self.0, b.0))
+    }
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn add(self, b: Wide) -> Wide {
+        Wide(std::arch::x86_64::_mm256_add_ps(self.0, b.0))
+    }
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn sub(self, b: Wide) -> Wide {
+        Wide(std::arch::x86_64::_mm256_sub_ps(self.0, b.0))
+    }
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn low(self) -> Lane {
+        Lane(std::arch::x86_64::_mm256_castps256_ps128(self.0))
+    }
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn high(self) -> Lane {
+        Lane(std::arch::x86_64::_mm256_extractf128_ps::<1>(self.0))
+    }
+}
+
 #[cfg(not(target_arch = "x86_64"))]
 impl Lane {
     #[inline(always)]
@@ -884,7 +1042,7 @@ impl ScalarCholesky {
             // Our own supernodal substitutions on faer's factor layout, the three coordinates
             // as lanes of one pass over the factor (faer's solve per column group spends most
             // of its time outside the arithmetic at this size).
-            let mut guard = self.lanes.lock().unwrap_or_else(|e| e.into_inner());
+            let mut guard = scratch(&self.lanes, Default::default);
             let (b, x, logs) = &mut *guard;
             b.resize(n, [0.0; 4]);
             x.resize(n, [0.0; 4]);
@@ -903,10 +1061,13 @@ impl ScalarCholesky {
             }
             return;
         }
-        let mut guard = self
-            .solve_scratch32
-            .lock()
-            .unwrap_or_else(|e| e.into_inner());
+        let mut guard = scratch(&self.solve_scratch32, || {
+            (
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f32>(1, Par::Seq)),
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f32>(2, Par::Seq)),
+                Vec::new(),
+            )
+        });
         let (stack_x, stack, buf) = &mut *guard;
         buf.resize(3 * n, 0.0);
         fill_columns(buf, n, |v| v as f32, rhs);
@@ -919,11 +1080,17 @@ impl ScalarCholesky {
 
     /// The solve scratch (two faer stacks and the `n x 3` column buffer, sized), or `None`
     /// without a factor.
-    fn solve_buffers(&self) -> Option<std::sync::MutexGuard<'_, SolveScratch>> {
+    fn solve_buffers(&self) -> Option<Scratch<'_, SolveScratch>> {
         if !self.factored {
             return None;
         }
-        let mut guard = self.solve_scratch.lock().unwrap_or_else(|e| e.into_inner());
+        let mut guard = scratch(&self.solve_scratch, || {
+            (
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)),
+                MemBuffer::new(self.symbolic.solve_in_place_scratch::<f64>(2, Par::Seq)),
+                Vec::new(),
+            )
+        });
         guard.2.resize(3 * self.n, 0.0);
         Some(guard)
     }
@@ -988,6 +1155,45 @@ impl ScalarCholesky {
             acc += r[i].dot(o);
         }
         acc
+    }
+}
+
+/// A solve's scratch: the factor's own (locked), or a fresh one.
+enum Scratch<'a, T> {
+    Locked(std::sync::MutexGuard<'a, T>),
+    Fresh(T),
+}
+
+impl<T> std::ops::Deref for Scratch<'_, T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        match self {
+            Scratch::Locked(g) => g,
+            Scratch::Fresh(t) => t,
+        }
+    }
+}
+
+impl<T> std::ops::DerefMut for Scratch<'_, T> {
+    fn deref_mut(&mut self) -> &mut T {
+        match self {
+            Scratch::Locked(g) => g,
+            Scratch::Fresh(t) => t,
+        }
+    }
+}
+
+/// The scratch in `m` if it is free, else `fresh()`. A solve holds its scratch across
+/// `rayon::join` (the right-hand side's parallel evaluation, the two halves of a split
+/// substitution, faer's two column groups), and a thread waiting in `join` runs other tasks,
+/// which may solve with the same factor: waiting for the lock there would deadlock (and two
+/// threads solving at once would wait for each other). Every solve writes its scratch before
+/// reading it, so the results do not depend on which scratch it gets.
+fn scratch<T>(m: &std::sync::Mutex<T>, fresh: impl FnOnce() -> T) -> Scratch<'_, T> {
+    match m.try_lock() {
+        Ok(g) => Scratch::Locked(g),
+        Err(std::sync::TryLockError::Poisoned(e)) => Scratch::Locked(e.into_inner()),
+        Err(std::sync::TryLockError::WouldBlock) => Scratch::Fresh(fresh()),
     }
 }
 
@@ -1213,10 +1419,12 @@ mod tests {
         BsrPattern::from_pairs(w * h, pairs)
     }
 
-    /// The two-thread substitution of a [`Split`] against the sequential one on the same
-    /// factor (the whole substitution in supernode order on one thread): the same bits, on a
+    /// The solve (two-thread substitution of a [`Split`], 8-wide AVX loops when the CPU has
+    /// AVX) against the plain sequential one on the same factor (the whole substitution in
+    /// supernode order on one thread, one row's four lanes at a time): the same bits, on a
     /// pool of one thread and of two; and against faer's double-precision solve within
-    /// single-precision rounding. Grids large enough for a split, with fixed nodes.
+    /// single-precision rounding. Grids large enough for a split, with fixed nodes, and with
+    /// supernodes of two and more columns over four and more rows below (the 8-wide loops').
     #[test]
     fn split_substitution_equals_the_sequential_one() {
         for (seed, (w, h)) in [(40usize, 40usize), (70, 25), (33, 51)]
@@ -1243,6 +1451,11 @@ mod tests {
             let layout = chol.layout.as_ref().unwrap();
             let split = layout.split.as_ref().expect("a split at this size");
             assert!(split.parts.iter().all(|p| !p.is_empty()) && !split.top.is_empty());
+            assert!(layout
+                .nodes
+                .iter()
+                .any(|s| s.size % 2 == 1 && s.size > 2 && s.m >= 4));
+            assert!(layout.nodes.iter().any(|s| s.size % 2 == 0 && s.m >= 4));
             let mut x: Vec<[f32; 4]> = layout
                 .fwd
                 .iter()
@@ -1251,8 +1464,10 @@ mod tests {
                     [v.x as f32, v.y as f32, v.z as f32, 0.0]
                 })
                 .collect();
+            // The oracle: the plain sequential substitution, one row's four lanes at a time
+            // (not the 8-wide AVX loops the solve uses when the CPU has AVX).
             // SAFETY: a row per matrix row, one thread.
-            unsafe { layout.run(&chol.factor32, Rows(x.as_mut_ptr()), Phase::All) };
+            unsafe { layout.run_lanes::<false>(&chol.factor32, Rows(x.as_mut_ptr()), Phase::All) };
             let mut want = vec![Vec3::zeros(); n];
             for (xi, &f) in x.iter().zip(&layout.fwd) {
                 want[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
@@ -1279,6 +1494,75 @@ mod tests {
             let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.amax()));
             for i in 0..n {
                 assert!((want[i] - exact[i]).amax() <= 1e-4 * scale, "row {i}");
+            }
+        }
+    }
+
+    /// A solve started while another solve with the same factor holds its scratch (here from
+    /// the outer solve's right-hand side, as a task run by a thread waiting in `rayon::join`
+    /// would): no deadlock, and both give the bits of the same solve run alone. Supernodal
+    /// (own substitution, with a split) and simplicial (faer) factors, single and double
+    /// precision, on one thread and on two.
+    #[test]
+    fn solves_nested_in_a_solve_give_the_same_bits() {
+        let (w, h) = (40, 40);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let n = w * h;
+        let pattern = grid_pattern(w, h);
+        let (_, values, fixed) = random_spd(&pattern, &mut rng, -1.0..0.0, 0.05, 0.1..1.0);
+        let r: Vec<Vec3> = (0..n)
+            .map(|_| {
+                Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                )
+            })
+            .collect();
+        let s: Vec<Vec3> = r.iter().map(|v| Vec3::new(v.z, -v.x, 0.5 * v.y)).collect();
+        for supernodal in [
+            SupernodalThreshold::FORCE_SUPERNODAL,
+            SupernodalThreshold::FORCE_SIMPLICIAL,
+        ] {
+            let mut chol = ScalarCholesky::with_threshold(&pattern, supernodal).unwrap();
+            assert!(chol.factor(&pattern, &values, &fixed));
+            for increment in [true, false] {
+                let solve = |rhs: &(dyn Fn(usize) -> Vec3 + Sync), out: &mut [Vec3]| {
+                    if increment {
+                        chol.solve_increment_with(rhs, out)
+                    } else {
+                        chol.solve_with(rhs, out)
+                    }
+                };
+                let (mut want_r, mut want_s) = (vec![Vec3::zeros(); n], vec![Vec3::zeros(); n]);
+                solve(&|i| r[i], &mut want_r);
+                solve(&|i| s[i], &mut want_s);
+                for threads in [1, 2] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let inner = std::sync::Mutex::new(vec![Vec3::zeros(); n]);
+                    let mut outer = vec![Vec3::zeros(); n];
+                    pool.install(|| {
+                        solve(
+                            &|i| {
+                                if i == n / 2 {
+                                    solve(&|j| s[j], &mut inner.lock().unwrap());
+                                }
+                                r[i]
+                            },
+                            &mut outer,
+                        )
+                    });
+                    let inner = inner.into_inner().unwrap();
+                    for i in 0..n {
+                        for c in 0..3 {
+                            assert_eq!(outer[i][c].to_bits(), want_r[i][c].to_bits());
+                            assert_eq!(inner[i][c].to_bits(), want_s[i][c].to_bits());
+                        }
+                    }
+                }
             }
         }
     }
