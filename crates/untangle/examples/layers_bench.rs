@@ -15,6 +15,7 @@
 //! at the contact vertices;
 //! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ;
 //! `LAYERS_BENCH_SETTLE=n` sets the repair's settle rounds (0: off);
+//! `LAYERS_BENCH_SNAP=x` sets `RepairParams::snap_tolerance` (e.g. 0.1; negative: off);
 //! `LAYERS_BENCH_STREAK=n[,max]` sets the pair phase's acceleration of persistent crossings
 //! (`RepairParams::pair_streak`, `pair_streak_max`; `0` restores fixed steps);
 //! `LAYERS_BENCH_NO_SELF_SEPARATION=1` turns off the repair's separation of self-intersections,
@@ -137,6 +138,12 @@ fn main() {
                 .and_then(|s| s.parse().ok())
             {
                 params.repair.settle_rounds = x;
+            }
+            if let Some(x) = std::env::var("LAYERS_BENCH_SNAP")
+                .ok()
+                .and_then(|s| s.parse().ok())
+            {
+                params.repair.snap_tolerance = x;
             }
             if std::env::var_os("LAYERS_BENCH_NO_SELF_SEPARATION").is_some() {
                 params.repair.separate_self_intersections = false;

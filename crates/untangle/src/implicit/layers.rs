@@ -517,6 +517,26 @@ pub fn untangle_with_fields(
     out.projection_ms = t_all.elapsed().as_secs_f64() * 1e3;
     if params.repair.steps > 0 || params.repair.pair_rounds > 0 {
         let t = Instant::now();
+        // Per garment vertex: merged with the layer below / above (the runs, as measured by
+        // `measure_separation`).
+        let contacts: Vec<Vec<u8>> = out
+            .projections
+            .iter()
+            .enumerate()
+            .map(|(k, pr)| {
+                let me = offset + k;
+                pr.run
+                    .iter()
+                    .zip(&pr.active)
+                    .map(|(run, &act)| {
+                        let below = me > 0 && run.0 < me && act & (1 << (me - 1)) != 0;
+                        let above = run.1 > me && act & (1 << (me + 1)) != 0;
+                        (below as u8 * super::repair::CONTACT_BELOW)
+                            | (above as u8 * super::repair::CONTACT_ABOVE)
+                    })
+                    .collect()
+            })
+            .collect();
         let rl: Vec<RepairLayer> = garments
             .iter()
             .enumerate()
@@ -531,6 +551,7 @@ pub fn untangle_with_fields(
                     } else {
                         0.5 * params.body_thickness
                     },
+                contacts: &contacts[k],
             })
             .collect();
         let mut positions: Vec<Vec<Vec3>> = out
