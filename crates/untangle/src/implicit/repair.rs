@@ -816,13 +816,12 @@ fn snap_goals(
             let dv = p - x;
             let d = dv.norm();
             if d < best.0 || (d == best.0 && t < best.2) {
-                let n = (b - a).cross(&(c - a));
-                let cos = if d > 0.0 && n.norm() > 0.0 {
-                    (dv.dot(&n) / (d * n.norm())).abs()
-                } else {
-                    1.0
-                };
-                best = (d, x, t, cos);
+                best = (
+                    d,
+                    x,
+                    t,
+                    super::separation::normal_alignment(&dv, &a, &b, &c),
+                );
             }
         });
         (best.0 <= radius && best.3 >= 0.99).then_some((best.0, best.1))

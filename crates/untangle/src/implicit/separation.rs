@@ -5,6 +5,21 @@
 use crate::broad::Bvh;
 use crate::geom::{Aabb, Vec3};
 
+/// `|cos|` of the angle between the offset `dv` (from the closest point of triangle `a b c` to
+/// the query point) and the triangle's normal: 1 when the point lies straight above the face,
+/// smaller towards its edges; 1 for a zero offset or a degenerate triangle. The separation
+/// measurement (Table 3 analogue) and the repair's snap count a contact only where this is
+/// close to 1.
+pub(crate) fn normal_alignment(dv: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> f64 {
+    let n = (b - a).cross(&(c - a));
+    let d = dv.norm();
+    if d > 0.0 && n.norm() > 0.0 {
+        (dv.dot(&n) / (d * n.norm())).abs()
+    } else {
+        1.0
+    }
+}
+
 /// Closest point of triangle `(a, b, c)` to `p` (Ericson, Real-Time Collision Detection 5.1.5).
 pub fn closest_point_triangle(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> Vec3 {
     let ab = b - a;
@@ -110,13 +125,7 @@ impl<'a> MeshDistance<'a> {
             let dv = p - closest_point_triangle(p, &a, &b, &c);
             let d = dv.norm();
             if d < best.0 || (d == best.0 && t < best.2) {
-                let n = (b - a).cross(&(c - a));
-                let cos = if d > 0.0 && n.norm() > 0.0 {
-                    (dv.dot(&n) / (d * n.norm())).abs()
-                } else {
-                    1.0
-                };
-                best = (d, cos, t);
+                best = (d, normal_alignment(&dv, &a, &b, &c), t);
             }
         });
         (best.0 <= radius).then_some(best)

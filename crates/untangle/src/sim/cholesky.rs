@@ -1400,6 +1400,18 @@ mod tests {
             }
         }
     }
+    /// `n` right-hand sides with coordinates uniform in [-1, 1).
+    fn random_rhs(rng: &mut rand_chacha::ChaCha8Rng, n: usize) -> Vec<Vec3> {
+        (0..n)
+            .map(|_| {
+                Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                )
+            })
+            .collect()
+    }
 
     /// A grid-graph pattern of `w x h` nodes (each joined to its right, upper and upper-right
     /// neighbours), like the triangle meshes of the simulator.
@@ -1435,15 +1447,7 @@ mod tests {
             let n = w * h;
             let pattern = grid_pattern(w, h);
             let (_, values, fixed) = random_spd(&pattern, &mut rng, -1.0..0.0, 0.05, 0.1..1.0);
-            let r: Vec<Vec3> = (0..n)
-                .map(|_| {
-                    Vec3::new(
-                        rng.random_range(-1.0..1.0),
-                        rng.random_range(-1.0..1.0),
-                        rng.random_range(-1.0..1.0),
-                    )
-                })
-                .collect();
+            let r = random_rhs(&mut rng, n);
             let mut chol =
                 ScalarCholesky::with_threshold(&pattern, SupernodalThreshold::FORCE_SUPERNODAL)
                     .unwrap();
@@ -1510,15 +1514,7 @@ mod tests {
         let n = w * h;
         let pattern = grid_pattern(w, h);
         let (_, values, fixed) = random_spd(&pattern, &mut rng, -1.0..0.0, 0.05, 0.1..1.0);
-        let r: Vec<Vec3> = (0..n)
-            .map(|_| {
-                Vec3::new(
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-1.0..1.0),
-                )
-            })
-            .collect();
+        let r = random_rhs(&mut rng, n);
         let s: Vec<Vec3> = r.iter().map(|v| Vec3::new(v.z, -v.x, 0.5 * v.y)).collect();
         for supernodal in [
             SupernodalThreshold::FORCE_SUPERNODAL,
