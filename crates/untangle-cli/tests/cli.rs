@@ -72,6 +72,37 @@ fn check_exit_codes_summary_and_json() {
     assert!(stdout(&o).is_empty());
 }
 
+/// The summary names panels and seam vertices in the singular when there is one: a square of
+/// two triangles in one uv panel whose corner 1 has two uv copies (one seam vertex), and a
+/// second copy of the square as its own panel (two panels, two seam vertices).
+#[test]
+fn summary_counts_panels_and_seam_vertices() {
+    let d = tempfile::tempdir().unwrap();
+    let one = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+               vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt -1 0\n\
+               f 1/1 2/2 3/3\nf 1/5 3/3 4/4\n";
+    std::fs::write(d.path().join("one.obj"), one).unwrap();
+    let o = untangle(&["check", "one.obj"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("one: 1 panel, 1 seam vertex\n"),
+        "{}",
+        stdout(&o)
+    );
+    // Two panels: the same square's second triangle in a uv island of its own.
+    let two = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+               vt 0 0\nvt 1 0\nvt 1 1\nvt 5 5\nvt 6 6\nvt 5 6\n\
+               f 1/1 2/2 3/3\nf 1/4 3/5 4/6\n";
+    std::fs::write(d.path().join("two.obj"), two).unwrap();
+    let o = untangle(&["check", "two.obj"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("two: 2 panels, 2 seam vertices\n"),
+        "{}",
+        stdout(&o)
+    );
+}
+
 #[test]
 fn report_does_not_depend_on_threads() {
     let d = tempfile::tempdir().unwrap();

@@ -100,7 +100,13 @@ pub fn summary(r: &Report) -> String {
     for o in &r.objects {
         if let (Some(p), Some(sv)) = (o.panels, o.seam_vertices) {
             if p > 1 || sv > 0 {
-                let _ = writeln!(s, "  {}: {p} panels, {sv} seam vertices", o.name);
+                let panels = if p == 1 { "panel" } else { "panels" };
+                let seams = if sv == 1 {
+                    "seam vertex"
+                } else {
+                    "seam vertices"
+                };
+                let _ = writeln!(s, "  {}: {p} {panels}, {sv} {seams}", o.name);
             }
         }
     }
