@@ -1257,7 +1257,10 @@ impl Simulator {
                         factor,
                         settings,
                         &mut x,
-                        (check || (last && !contacts.is_empty())).then_some(&mut force),
+                        // The constraint forces are read only at obstacle contacts (release
+                        // rule, friction bound of the next step): without any, no residual
+                        // product (the springs' release looks at the velocities).
+                        ((check || last) && !contacts.is_empty()).then_some(&mut force),
                         &mut work,
                     );
                     if chebyshev && have_prev {
