@@ -49,7 +49,7 @@ fn main() {
     // step's simulator report (JSON: collision passes, impact zones, per-phase milliseconds).
     let verbose = std::env::var("CHA_KO_BENCH_VERBOSE").is_ok();
     let mut phases = Phases::default();
-    let outcome = loop {
+    let mut run = || loop {
         if let Some(o) = r.stop_reason() {
             break o;
         }
@@ -62,6 +62,13 @@ fn main() {
             eprintln!("{}", sr.to_json());
         }
         phases.add(&sr);
+    };
+    // CHA_KO_BENCH_SCOPE=1: the loop inside one `rayon::scope`, so that with one worker thread
+    // everything runs on one stack and callgrind's inclusive costs are per phase.
+    let outcome = if std::env::var("CHA_KO_BENCH_SCOPE").is_ok() {
+        rayon::scope(|_| run())
+    } else {
+        run()
     };
     let s = r.summary(outcome);
     let wall = t.elapsed().as_secs_f64();

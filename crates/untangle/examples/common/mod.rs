@@ -37,7 +37,9 @@ pub fn arg(i: usize, default: usize) -> usize {
 /// The integrator picked by the environment: `UNTANGLE_INTEGRATOR=projective` (or `pd`) selects
 /// projective dynamics, anything else (or unset) Baraff & Witkin; `UNTANGLE_PD_ITERATIONS` sets
 /// the local/global iterations per step (default: the library's), `UNTANGLE_PD_CHEBYSHEV` the
-/// Chebyshev spectral radius (0 = off), `UNTANGLE_PD_ANDERSON` the Anderson window (0 = off).
+/// Chebyshev spectral radius (0 = off), `UNTANGLE_PD_ANDERSON` the Anderson window (0 = off),
+/// `UNTANGLE_PD_CG_CAP` the CG iterations per global step under contact terms (default: the
+/// library's).
 pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimParams {
     use untangle::sim::Integrator;
     if let Ok(s) = std::env::var("UNTANGLE_INTEGRATOR") {
@@ -45,6 +47,12 @@ pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimP
             "projective" | "pd" => Integrator::Projective,
             _ => Integrator::BaraffWitkin,
         };
+    }
+    if let Some(k) = std::env::var("UNTANGLE_PD_CG_CAP")
+        .ok()
+        .and_then(|s| s.parse().ok())
+    {
+        p.projective_cg_iterations = k;
     }
     if let Some(k) = std::env::var("UNTANGLE_PD_ITERATIONS")
         .ok()

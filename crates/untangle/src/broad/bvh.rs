@@ -135,6 +135,34 @@ impl Bvh {
         }
     }
 
+    /// [`Bvh::refit`] when only the primitives `p` with `changed[p]` may have new boxes since
+    /// the last refit (or the build): only their slots are copied, and only the nodes above them
+    /// are recomputed; every other node keeps its box, which is the union of the same slot boxes
+    /// (ours). The same boxes as [`Bvh::refit`] bit for bit (unions of boxes are exact).
+    pub fn refit_changed(&mut self, aabbs: &[Aabb], changed: &[bool]) {
+        assert_eq!(
+            aabbs.len(),
+            self.order.len(),
+            "refit with a different primitive count"
+        );
+        assert_eq!(changed.len(), self.order.len(), "one flag per primitive");
+        // Dirty slots before each slot: a subtree (slots `first..first + size`) needs a refit
+        // iff the count grows over it.
+        let mut dirty = Vec::with_capacity(self.order.len() + 1);
+        dirty.push(0u32);
+        let mut count = 0;
+        for (slot, &p) in self.slot_aabbs.iter_mut().zip(&self.order) {
+            if changed[p as usize] {
+                *slot = aabbs[p as usize];
+                count += 1;
+            }
+            dirty.push(count);
+        }
+        if count > 0 && !self.nodes.is_empty() {
+            refit_dirty(&mut self.nodes, 0, &self.slot_aabbs, &dirty);
+        }
+    }
+
     /// Calls `visit(i, j, out)` for every pair `i != j` of primitives whose boxes overlap, each
     /// unordered pair once, and returns everything pushed to `out`, in an order independent of the
     /// number of threads.
@@ -438,6 +466,29 @@ fn refit_subtree(nodes: &mut [Node], offset: usize, slots: &[Aabb], cutoff: u32)
     b
 }
 
+/// [`refit_subtree`] (sequential) of only the subtrees with a dirty slot (`dirty[s]`: dirty
+/// slots before slot `s`); the others keep their boxes. Returns the subtree's box.
+fn refit_dirty(nodes: &mut [Node], offset: usize, slots: &[Aabb], dirty: &[u32]) -> Aabb {
+    let n = nodes[0];
+    if dirty[(n.first + n.size) as usize] == dirty[n.first as usize] {
+        return n.aabb;
+    }
+    let b = if n.is_leaf() {
+        slots[n.start as usize..(n.start + n.count) as usize]
+            .iter()
+            .fold(Aabb::EMPTY, |a, b| a.union(b))
+    } else {
+        let (l, r) = (n.start as usize - offset, n.right as usize - offset);
+        let (left, right) = nodes[l..].split_at_mut(r - l);
+        let bl = refit_dirty(left, offset + l, slots, dirty);
+        let br = refit_dirty(right, offset + r, slots, dirty);
+        bl.union(&br)
+    };
+    nodes[0].aabb = b;
+    nodes[0].half_area = b.half_area();
+    b
+}
+
 /// [`Aabb::overlaps`] without short-circuiting (the six comparisons are cheaper than the
 /// branches in the traversals' innermost loops; same result).
 #[inline(always)]
@@ -635,6 +686,42 @@ mod tests {
                 hits.sort();
                 let want: Vec<u32> = (0..moved.len() as u32).filter(|&i| moved[i as usize].overlaps(q)).collect();
                 prop_assert_eq!(hits, want);
+            }
+        }
+    }
+
+    proptest! {
+        /// A refit of only the changed primitives gives the same node boxes (and half areas) as
+        /// a full refit, bit for bit, over several rounds of random moves.
+        #[test]
+        fn changed_refit_equals_a_full_refit(
+            raw in proptest::collection::vec((proptest::array::uniform3(-10.0f64..10.0), proptest::array::uniform3(0.0f64..1.5)), 1..300),
+            rounds in proptest::collection::vec((any::<u64>(), 0.0f64..1.0, proptest::array::uniform3(-3.0f64..3.0)), 1..4),
+            leaf in 1usize..12,
+        ) {
+            use rand::{Rng, SeedableRng};
+            let mut a = boxes(&raw);
+            let mut full = Bvh::build_with_leaf_size(&a, leaf);
+            let mut part = full.clone();
+            for (seed, share, shift) in rounds {
+                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+                let changed: Vec<bool> = (0..a.len()).map(|_| rng.random::<f64>() < share).collect();
+                for (b, &c) in a.iter_mut().zip(&changed) {
+                    if c {
+                        let s = Vec3::new(shift[0], shift[1], shift[2]) * rng.random::<f64>();
+                        *b = Aabb { min: b.min + s, max: b.max + s * 1.5 };
+                    }
+                }
+                full.refit(&a);
+                part.refit_changed(&a, &changed);
+                prop_assert_eq!(full.nodes.len(), part.nodes.len());
+                for (x, y) in full.nodes.iter().zip(&part.nodes) {
+                    prop_assert_eq!(x.aabb, y.aabb);
+                    prop_assert_eq!(x.half_area.to_bits(), y.half_area.to_bits());
+                }
+                for (x, y) in full.slot_aabbs.iter().zip(&part.slot_aabbs) {
+                    prop_assert_eq!(x, y);
+                }
             }
         }
     }

@@ -519,6 +519,16 @@ pub fn solve_factored(
         }
         let alpha = delta_new / cq;
         advance(x, &mut r, &c, &q, alpha);
+        if it + 1 == settings.max_iterations {
+            // At the cap the next preconditioned residual would only serve the stopping test:
+            // skip its factor solve (the same iterate; the residual reported is the one before
+            // this iteration, and the solve counts as not converged).
+            return PcgResult {
+                iterations: it + 1,
+                relative_residual: rel(delta_new),
+                converged: false,
+            };
+        }
         let rs_dot = apply_factor(factor, how, &r, filter, &mut s);
         if rs_dot.is_nan() || rs_dot < 0.0 {
             delta_new = f64::INFINITY;
@@ -703,6 +713,114 @@ mod tests {
         let nan = vec![Vec3::new(f64::NAN, 0.0, 0.0)];
         assert!(same_bits(&nan, &nan.clone()));
         assert!(!same_bits(&a, &a[..2]));
+    }
+
+    /// [`solve_factored`] capped at `k` iterations (tolerance 0, so the cap stops it; at the
+    /// cap it skips the stopping test's solve) gives the `k`-th iterate of a textbook PCG with
+    /// the same preconditioner, written out here; also when `A` is not the factored matrix.
+    #[test]
+    fn capped_factored_solve_is_the_kth_textbook_iterate() {
+        for seed in 0..6u64 {
+            let n = 40;
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let pairs: Vec<(u32, u32)> = (0..n as u32)
+                .map(|i| (i, (i + 1) % n as u32))
+                .chain((0..n as u32).map(|i| (i, (i * 7 + 3) % n as u32)))
+                .filter(|(i, j)| i != j)
+                .collect();
+            let p = BsrPattern::from_pairs(n, pairs.clone());
+            // A scalar Laplacian plus a mass diagonal (SPD), factored.
+            let mut values = vec![0.0; p.cols.len()];
+            for &(i, j) in &pairs {
+                let k = rng.random_range(0.5..3.0);
+                for (r, c, sgn) in [(i, i, 1.0), (j, j, 1.0), (i, j, -1.0), (j, i, -1.0)] {
+                    values[p.slot(r, c).unwrap()] += k * sgn;
+                }
+            }
+            for i in 0..n {
+                values[p.diag[i] as usize] += rng.random_range(0.5..2.0);
+            }
+            let mut chol = ScalarCholesky::new(&p).unwrap();
+            assert!(chol.factor(&p, &values, &vec![false; n]));
+            // A = B (x) I3 + a rank-one term (so that the factor is only a preconditioner).
+            let w: Vec<Vec3> = (0..n)
+                .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()) - Vec3::repeat(0.5))
+                .collect();
+            let apply = |x: &[Vec3], y: &mut [Vec3]| {
+                let mut d = 0.0;
+                for i in 0..n {
+                    let mut s = Vec3::zeros();
+                    for slot in p.offsets[i] as usize..p.offsets[i + 1] as usize {
+                        s += x[p.cols[slot] as usize] * values[slot];
+                    }
+                    y[i] = s;
+                    d += w[i].dot(&x[i]);
+                }
+                for i in 0..n {
+                    y[i] += w[i] * (5.0 * d);
+                }
+            };
+            let b: Vec<Vec3> = (0..n)
+                .map(|_| Vec3::new(rng.random(), rng.random(), rng.random()))
+                .collect();
+            let filter = vec![Filter::Free; n];
+            let precond = |r: &[Vec3]| {
+                let mut z = vec![Vec3::zeros(); n];
+                apply_factor(&chol, FactorSolve::Double, r, &filter, &mut z);
+                z
+            };
+            let dotv = |a: &[Vec3], c: &[Vec3]| a.iter().zip(c).map(|(x, y)| x.dot(y)).sum::<f64>();
+            for k in 1..4 {
+                // Textbook PCG from zero, exactly k iterations.
+                let mut x = vec![Vec3::zeros(); n];
+                let mut r = b.clone();
+                let mut z = precond(&r);
+                let mut d = z.clone();
+                let mut rz = dotv(&r, &z);
+                for _ in 0..k {
+                    let mut q = vec![Vec3::zeros(); n];
+                    apply(&d, &mut q);
+                    let alpha = rz / dotv(&d, &q);
+                    for i in 0..n {
+                        x[i] += d[i] * alpha;
+                        r[i] -= q[i] * alpha;
+                    }
+                    z = precond(&r);
+                    let rz_new = dotv(&r, &z);
+                    for i in 0..n {
+                        d[i] = z[i] + d[i] * (rz_new / rz);
+                    }
+                    rz = rz_new;
+                }
+                let mut got = vec![Vec3::zeros(); n];
+                let settings = PcgSettings {
+                    tolerance: 0.0,
+                    absolute: 0.0,
+                    max_iterations: k,
+                };
+                let res = solve_factored(
+                    &apply,
+                    &b,
+                    &filter,
+                    &vec![Vec3::zeros(); n],
+                    &mut got,
+                    settings,
+                    &chol,
+                    FactorSolve::Double,
+                );
+                assert_eq!(res.iterations, k);
+                assert!(!res.converged);
+                let scale = x.iter().map(|v| v.norm()).fold(0.0, f64::max);
+                for i in 0..n {
+                    assert!(
+                        (got[i] - x[i]).norm() <= 1e-10 * scale,
+                        "seed {seed} k {k} vertex {i}: {:?} vs {:?}",
+                        got[i],
+                        x[i]
+                    );
+                }
+            }
+        }
     }
 
     /// A random SPD block system on a ring-with-chords pattern.

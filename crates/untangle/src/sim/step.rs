@@ -116,6 +116,13 @@ pub struct SimParams {
     /// 2018, [`crate::sim::anderson`], with their energy safeguard); 0 turns it off. It replaces
     /// Chebyshev on the steps whose global steps are direct solves.
     pub projective_anderson: usize,
+    /// Cap of the CG iterations of one projective global step under contact terms (ours; CG
+    /// stops earlier at a relative residual of 1e-6). Default 10. With 1 a global step is one
+    /// factor-preconditioned steepest-descent step (one factor solve: CG skips the solve that
+    /// would only test convergence at the cap), which still never increases the step energy;
+    /// in the Cha & Ko loop that is 10 instead of ~35 solves per step (BENCHMARKS.md, branch
+    /// loop9). Off by default: not yet checked beyond the loop's benchmarks.
+    pub projective_cg_iterations: usize,
 }
 
 /// How the implicit step before collision handling is solved.
@@ -169,6 +176,7 @@ impl Default for SimParams {
             projective_iterations: 10,
             projective_chebyshev: 0.9,
             projective_anderson: 0,
+            projective_cg_iterations: PD_CG_CAP,
         }
     }
 }
@@ -214,6 +222,11 @@ impl SimParams {
                 "projective chebyshev rho must be in [0, 1), got {}",
                 self.projective_chebyshev
             )));
+        }
+        if self.projective_cg_iterations == 0 {
+            return Err(Error::Parameter(
+                "projective CG iterations must be at least 1".into(),
+            ));
         }
         if self.projective_iterations == 0 {
             return Err(Error::Parameter(
@@ -1073,7 +1086,7 @@ impl Simulator {
             absolute: 0.0,
             // Inexact global steps keep the energy decreasing (CG from the current iterate
             // only lowers the quadratic), and the next iteration solves again.
-            max_iterations: p.cg_max_iterations.min(PD_CG_CAP),
+            max_iterations: p.cg_max_iterations.min(p.projective_cg_iterations),
         };
         // Start at the inertial target `y` (Bouaziz et al. 2014, Alg. 1). Starting at the
         // extrapolated prediction `x + h (v + dv_prev)` instead injected energy whenever the
@@ -1257,7 +1270,10 @@ impl Simulator {
                         factor,
                         settings,
                         &mut x,
-                        (check || (last && !contacts.is_empty())).then_some(&mut force),
+                        // The constraint forces are read only at obstacle contacts (release
+                        // rule, friction bound of the next step): without any, no residual
+                        // product (the springs' release looks at the velocities).
+                        ((check || last) && !contacts.is_empty()).then_some(&mut force),
                         &mut work,
                     );
                     if chebyshev && have_prev {
@@ -1610,7 +1626,8 @@ fn low_rank_terms(
     (groups, terms)
 }
 
-/// Cap of the CG iterations of one projective global step.
+/// Default cap of the CG iterations of one projective global step
+/// ([`SimParams::projective_cg_iterations`]).
 const PD_CG_CAP: usize = 10;
 /// Relative CG tolerance of a projective global step with contact terms.
 const PD_CG_TOLERANCE: f64 = 1e-6;

@@ -134,8 +134,8 @@ impl BroadPhase {
 
     /// [`BroadPhase::update`] between the passes of one step, when only the velocities of the
     /// cloth vertices with `changed[i]` differ from the last update: only their primitives' boxes
-    /// are recomputed, then the cloth hierarchies are refitted (obstacle motion does not depend
-    /// on `v`).
+    /// are recomputed, then only the cloth hierarchies' nodes above them are refitted
+    /// ([`Bvh::refit_changed`]; obstacle motion does not depend on `v`).
     pub fn update_changed(&mut self, scene: &Scene, v: &[Vec3], margin: f64, changed: &[bool]) {
         let count = changed.iter().filter(|&&c| c).count();
         if !self.built || self.vert_boxes.len() != scene.x0.len() || 4 * count > changed.len() {
@@ -156,30 +156,38 @@ impl BroadPhase {
                     *b = swept(scene, v, [p as u32], 0.0);
                 }
             });
+        let tri_changed: Vec<bool> = scene.triangles.iter().map(|t| touched(t)).collect();
+        let edge_changed: Vec<bool> = scene.edges.iter().map(|e| touched(e)).collect();
         let vert = &self.vert_boxes;
         self.tri_boxes
             .par_iter_mut()
             .with_min_len(4096)
-            .zip(scene.triangles.par_iter())
-            .for_each(|(b, t)| {
-                if touched(t) {
+            .zip(scene.triangles.par_iter().zip(tri_changed.par_iter()))
+            .for_each(|(b, (t, &c))| {
+                if c {
                     *b = union_of(vert, t).inflated(margin);
                 }
             });
         self.edge_boxes
             .par_iter_mut()
             .with_min_len(4096)
-            .zip(scene.edges.par_iter())
-            .for_each(|(b, e)| {
-                if touched(e) {
+            .zip(scene.edges.par_iter().zip(edge_changed.par_iter()))
+            .for_each(|(b, (e, &c))| {
+                if c {
                     *b = union_of(vert, e).inflated(0.5 * margin);
                 }
             });
+        // Only the nodes above changed primitives (the same boxes as a full refit).
         let (t, e, vb) = (&mut self.tri, &mut self.edge, &mut self.vert);
         let (tb, eb, vbb) = (&self.tri_boxes, &self.edge_boxes, &self.vert_boxes);
         rayon::join(
-            || t.refit(tb),
-            || rayon::join(|| e.refit(eb), || vb.refit(vbb)),
+            || t.refit_changed(tb, &tri_changed),
+            || {
+                rayon::join(
+                    || e.refit_changed(eb, &edge_changed),
+                    || vb.refit_changed(vbb, changed),
+                )
+            },
         );
     }
 
