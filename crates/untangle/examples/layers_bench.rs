@@ -15,7 +15,10 @@
 //! at the contact vertices;
 //! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ;
 //! `LAYERS_BENCH_SETTLE=n` sets the repair's settle rounds (0: off);
-//! `LAYERS_BENCH_SNAP=x` sets `RepairParams::snap_tolerance` (e.g. 0.1; negative: off);
+//! `LAYERS_BENCH_SNAP=x[,rounds]` sets `RepairParams::snap_tolerance` (e.g. 0.1; negative: off)
+//! and optionally `snap_rounds`;
+//! `LAYERS_BENCH_SETTLE_COARSE=n[,edge]` sets `RepairParams::settle_rounds_coarse` and
+//! optionally `coarse_edge` (in thickness rules);
 //! `LAYERS_BENCH_STREAK=n[,max]` sets the pair phase's acceleration of persistent crossings
 //! (`RepairParams::pair_streak`, `pair_streak_max`; `0` restores fixed steps);
 //! `LAYERS_BENCH_NO_SELF_SEPARATION=1` turns off the repair's separation of self-intersections,
@@ -139,11 +142,25 @@ fn main() {
             {
                 params.repair.settle_rounds = x;
             }
-            if let Some(x) = std::env::var("LAYERS_BENCH_SNAP")
-                .ok()
-                .and_then(|s| s.parse().ok())
-            {
-                params.repair.snap_tolerance = x;
+            if let Ok(x) = std::env::var("LAYERS_BENCH_SNAP") {
+                // tolerance[,rounds]
+                let v: Vec<f64> = x.split(',').filter_map(|s| s.parse().ok()).collect();
+                if let Some(&t) = v.first() {
+                    params.repair.snap_tolerance = t;
+                }
+                if let Some(&r) = v.get(1) {
+                    params.repair.snap_rounds = r as usize;
+                }
+            }
+            if let Ok(x) = std::env::var("LAYERS_BENCH_SETTLE_COARSE") {
+                // rounds[,coarse edge in thickness rules]
+                let v: Vec<f64> = x.split(',').filter_map(|s| s.parse().ok()).collect();
+                if let Some(&n) = v.first() {
+                    params.repair.settle_rounds_coarse = n as usize;
+                }
+                if let Some(&e) = v.get(1) {
+                    params.repair.coarse_edge = e;
+                }
             }
             if std::env::var_os("LAYERS_BENCH_NO_SELF_SEPARATION").is_some() {
                 params.repair.separate_self_intersections = false;
