@@ -366,15 +366,51 @@ impl Layout {
         for c in 0..size {
             let xc = at(start + c).div(w(c, c));
             put(start + c, xc);
-            for r in c + 1..size {
+            let mut r = c + 1;
+            #[cfg(target_arch = "x86_64")]
+            if WIDE {
+                // The same updates two rows per 8-wide register (rows `start + r` and
+                // `start + r + 1` are adjacent, and so are their weights in column `c`).
+                // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads and writes
+                // are those of `w`, `at` and `put` below (`r + 1 < size`).
+                unsafe {
+                    let xw = Wide::broadcast(xp.add(start + c));
+                    while r + 4 <= size {
+                        let (p, wr) = (xp.add(start + r), bp.add(c * ld + r));
+                        let a = Wide::load(p).sub(Wide::pair(wr).mul(xw));
+                        let b = Wide::load(p.add(2)).sub(Wide::pair(wr.add(2)).mul(xw));
+                        a.store(p);
+                        b.store(p.add(2));
+                        r += 4;
+                    }
+                    if r + 2 <= size {
+                        let p = xp.add(start + r);
+                        Wide::load(p)
+                            .sub(Wide::pair(bp.add(c * ld + r)).mul(xw))
+                            .store(p);
+                        r += 2;
+                    }
+                }
+            }
+            for r in r..size {
                 put(start + r, at(start + r).sub_scaled(w(c, r), xc));
             }
         }
         let mut q = 0;
         #[cfg(target_arch = "x86_64")]
         if WIDE {
-            // The same sums as below, rows `q, q + 1` and `q + 2, q + 3` in the halves of two
-            // 8-wide accumulators.
+            // The same sums as below, eight rows at a time coordinate by coordinate (the
+            // rows' weights in column `c` are adjacent: one load per column and coordinate).
+            while q + 8 <= m {
+                // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads are those
+                // of `w` and `at` below for rows `q..q + 8` (`q + 8 <= m`).
+                let acc = unsafe { forward_rows8(bp.add(size + q), ld, size, xp.add(start)) };
+                for (k, a) in acc.iter().enumerate() {
+                    update(q + k, *a);
+                }
+                q += 8;
+            }
+            // Rows `q, q + 1` and `q + 2, q + 3` in the halves of two 8-wide accumulators.
             while q + 4 <= m {
                 // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads are those
                 // of `w` and `at` below.
@@ -492,6 +528,59 @@ impl Layout {
             put(start + c, xc.div(w(c, c)));
         }
     }
+}
+
+/// The forward step's sums of eight rows below a diagonal block: for `k < 8`, lane by lane,
+/// `0 + w[0 * ld + k] x[0] + ... + w[(size - 1) * ld + k] x[size - 1]` (each product added in
+/// column order, separate multiply and add), as the four lanes of a row: the same operations
+/// as [`Lane::add_scaled`] over the columns, the `x`, `y` and `z` lanes of the eight rows in
+/// one 8-wide register each (the unused fourth lane is `0`, as `0 + w 0` is).
+///
+/// # Safety
+/// The CPU has AVX; `w` points to `size` columns `ld` apart of eight readable `f32`, `x` to
+/// `size` readable rows.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx")]
+unsafe fn forward_rows8(w: *const f32, ld: usize, size: usize, x: *const [f32; 4]) -> [Lane; 8] {
+    use std::arch::x86_64::*;
+    let (mut ax, mut ay, mut az) = (
+        _mm256_setzero_ps(),
+        _mm256_setzero_ps(),
+        _mm256_setzero_ps(),
+    );
+    for c in 0..size {
+        // SAFETY: the caller's.
+        unsafe {
+            let wc = _mm256_loadu_ps(w.add(c * ld));
+            let xc = x.add(c) as *const f32;
+            ax = _mm256_add_ps(ax, _mm256_mul_ps(wc, _mm256_broadcast_ss(&*xc)));
+            ay = _mm256_add_ps(ay, _mm256_mul_ps(wc, _mm256_broadcast_ss(&*xc.add(1))));
+            az = _mm256_add_ps(az, _mm256_mul_ps(wc, _mm256_broadcast_ss(&*xc.add(2))));
+        }
+    }
+    // Transpose to rows `(x, y, z, 0)`: rows `k` and `k + 4` in the halves of `r[k]`.
+    let zero = _mm256_setzero_ps();
+    let (xy_lo, xy_hi) = (_mm256_unpacklo_ps(ax, ay), _mm256_unpackhi_ps(ax, ay));
+    let (z_lo, z_hi) = (_mm256_unpacklo_ps(az, zero), _mm256_unpackhi_ps(az, zero));
+    let r = [
+        _mm256_shuffle_ps::<0x44>(xy_lo, z_lo),
+        _mm256_shuffle_ps::<0xEE>(xy_lo, z_lo),
+        _mm256_shuffle_ps::<0x44>(xy_hi, z_hi),
+        _mm256_shuffle_ps::<0xEE>(xy_hi, z_hi),
+    ];
+    let low = |v: __m256| Lane(_mm256_castps256_ps128(v));
+    let high = |v: __m256| Lane(_mm256_extractf128_ps::<1>(v));
+    [
+        low(r[0]),
+        low(r[1]),
+        low(r[2]),
+        low(r[3]),
+        high(r[0]),
+        high(r[1]),
+        high(r[2]),
+        high(r[3]),
+    ]
 }
 
 impl Split {
@@ -771,6 +860,22 @@ impl Wide {
         let both = unsafe { _mm256_broadcast_ps(&*(w as *const __m128)) };
         let pick = _mm256_setr_epi32(k, k, k, k, k + 1, k + 1, k + 1, k + 1);
         Wide(_mm256_permutevar_ps(both, pick))
+    }
+    /// `w[0]` in the low half's lanes and `w[1]` in the high half's.
+    ///
+    /// # Safety
+    /// `w` points to two readable `f32`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    unsafe fn pair(w: *const f32) -> Wide {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller's (eight bytes, read unaligned).
+        let two = unsafe { std::ptr::read_unaligned(w as *const f64) };
+        let both = _mm256_castpd_ps(_mm256_set1_pd(two));
+        Wide(_mm256_permutevar_ps(
+            both,
+            _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1),
+        ))
     }
     /// `a[k]` in the low half's lanes and `b[k]` in the high half's.
     ///
@@ -1460,6 +1565,10 @@ mod tests {
                 .iter()
                 .any(|s| s.size % 2 == 1 && s.size > 2 && s.m >= 4));
             assert!(layout.nodes.iter().any(|s| s.size % 2 == 0 && s.m >= 4));
+            assert!(layout
+                .nodes
+                .iter()
+                .any(|s| s.size >= 2 && s.m >= 8 && s.m % 8 >= 4));
             let mut x: Vec<[f32; 4]> = layout
                 .fwd
                 .iter()
