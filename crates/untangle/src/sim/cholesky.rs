@@ -87,7 +87,16 @@ struct Supernode {
     val: usize,
     pat: usize,
     m: usize,
+    /// Where the rows below the diagonal block start in row-major order (`m` rows of `size`
+    /// values) in the values given to the solve, after the factor's own values; only for
+    /// supernodes of [`BLOCK_COLUMNS`] and more columns (else `usize::MAX`).
+    tval: usize,
 }
+
+/// Columns of a supernode the AVX backward step treats eight at a time, coordinate by
+/// coordinate, from a row-major copy of the rows below the diagonal block
+/// ([`backward_cols8`]); supernodes with fewer columns have no copy.
+const BLOCK_COLUMNS: usize = 8;
 
 /// faer's supernodal structure in plain arrays, with the fill-reducing permutation.
 #[derive(Debug)]
@@ -169,6 +178,8 @@ impl Layout {
         let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
         let (row_ptr, val_ptr) = (sn.col_ptr_for_row_idx(), sn.col_ptr_for_val());
         let mut nodes = Vec::with_capacity(sn.n_supernodes());
+        // The row-major copies follow the factor's values.
+        let mut tval = val_ptr[sn.n_supernodes()];
         for s in 0..sn.n_supernodes() {
             let size = end[s] - begin[s];
             let len = val_ptr[s + 1] - val_ptr[s];
@@ -183,6 +194,12 @@ impl Layout {
                 val: val_ptr[s],
                 pat: row_ptr[s],
                 m,
+                tval: if size >= BLOCK_COLUMNS {
+                    tval += size * m;
+                    tval - size * m
+                } else {
+                    usize::MAX
+                },
             });
         }
         if nodes.iter().any(|s| s.start + s.size > n) || sn.row_idx().iter().any(|&r| r >= n) {
@@ -202,6 +219,20 @@ impl Layout {
         })
     }
 
+    /// Appends to the single-precision factor values `l` the row-major copies of the rows below
+    /// the diagonal blocks of the supernodes that have one (see [`Supernode::tval`]).
+    fn append_row_major(&self, l: &mut Vec<f32>) {
+        for s in self.nodes.iter().filter(|s| s.tval != usize::MAX) {
+            debug_assert_eq!(l.len(), s.tval);
+            let ld = s.size + s.m;
+            for r in s.size..ld {
+                for c in 0..s.size {
+                    l.push(l[s.val + c * ld + r]);
+                }
+            }
+        }
+    }
+
     /// Solves `L L^T x = b` in place for the permuted right-hand sides `x` (four lanes per row:
     /// the coordinates) with the factor values `l`. Per supernode, forward: the dense triangle
     /// of the diagonal block, then the rows below four at a time, each row's update summed over
@@ -216,6 +247,12 @@ impl Layout {
                 .last()
                 .is_none_or(|s| s.val + (s.size + s.m) * s.size <= l.len()),
             "factor values of the layout"
+        );
+        assert!(
+            self.nodes
+                .iter()
+                .all(|s| s.tval == usize::MAX || s.tval + s.size * s.m <= l.len()),
+            "row-major copies of the layout"
         );
         let xp = Rows(x.as_mut_ptr());
         let Some(split) = &self.split else {
@@ -467,6 +504,21 @@ impl Layout {
         let bp = block.as_ptr();
         let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
         let mut q = 0;
+        // Columns `..c_lo` are done eight at a time by `backward_cols8` (all rows below).
+        let mut c_lo = 0;
+        #[cfg(target_arch = "x86_64")]
+        if WIDE && s.tval != usize::MAX {
+            c_lo = size / 8 * 8;
+            let wt = l[s.tval..s.tval + size * m].as_ptr();
+            let rows: *const u32 = pat.as_ptr();
+            for c in (0..c_lo).step_by(8) {
+                // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the row-major copy
+                // (checked in `Layout::solve`) has `m` rows of `size >= c + 8` values, `pat`
+                // holds `m` row indices below `n`, and rows `start + c..start + c + 8` are
+                // columns of this supernode.
+                unsafe { backward_cols8(wt.add(c), size, rows, m, xp, xp.add(start + c)) };
+            }
+        }
         #[cfg(target_arch = "x86_64")]
         if WIDE {
             // The same sums as below for two columns at once (the halves of 8-wide registers),
@@ -476,8 +528,14 @@ impl Layout {
                 // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads and writes
                 // are those of `w`, `at` and `put` below.
                 unsafe {
-                    let xr = [0, 1, 2, 3].map(|k| Wide::broadcast(xp.add(pat[q + k] as usize)));
-                    let mut c = 0;
+                    // (No closures here: they would not inherit this function's AVX.)
+                    let xr = [
+                        Wide::broadcast(xp.add(pat[q] as usize)),
+                        Wide::broadcast(xp.add(pat[q + 1] as usize)),
+                        Wide::broadcast(xp.add(pat[q + 2] as usize)),
+                        Wide::broadcast(xp.add(pat[q + 3] as usize)),
+                    ];
+                    let mut c = c_lo;
                     while c + 2 <= size {
                         let wc = bp.add(c * ld + r);
                         let wn = bp.add((c + 1) * ld + r);
@@ -490,7 +548,7 @@ impl Layout {
                         Wide::load(p).sub(sum).store(p);
                         c += 2;
                     }
-                    let xr = xr.map(|x| x.low());
+                    let xr = [xr[0].low(), xr[1].low(), xr[2].low(), xr[3].low()];
                     for c in c..size {
                         let sum = xr[0]
                             .scaled(w(c, r))
@@ -516,7 +574,7 @@ impl Layout {
         }
         for q in q..m {
             let xr = at(pat[q] as usize);
-            for c in 0..size {
+            for c in c_lo..size {
                 put(start + c, at(start + c).sub_scaled(w(c, size + q), xr));
             }
         }
@@ -569,18 +627,114 @@ unsafe fn forward_rows8(w: *const f32, ld: usize, size: usize, x: *const [f32; 4
         _mm256_shuffle_ps::<0x44>(xy_hi, z_hi),
         _mm256_shuffle_ps::<0xEE>(xy_hi, z_hi),
     ];
-    let low = |v: __m256| Lane(_mm256_castps256_ps128(v));
-    let high = |v: __m256| Lane(_mm256_extractf128_ps::<1>(v));
     [
-        low(r[0]),
-        low(r[1]),
-        low(r[2]),
-        low(r[3]),
-        high(r[0]),
-        high(r[1]),
-        high(r[2]),
-        high(r[3]),
+        Lane(_mm256_castps256_ps128(r[0])),
+        Lane(_mm256_castps256_ps128(r[1])),
+        Lane(_mm256_castps256_ps128(r[2])),
+        Lane(_mm256_castps256_ps128(r[3])),
+        Lane(_mm256_extractf128_ps::<1>(r[0])),
+        Lane(_mm256_extractf128_ps::<1>(r[1])),
+        Lane(_mm256_extractf128_ps::<1>(r[2])),
+        Lane(_mm256_extractf128_ps::<1>(r[3])),
     ]
+}
+
+/// The backward step's updates of eight columns of a supernode from all rows below its
+/// diagonal block: per column `c` and lane, for each group of four rows `r..r + 4` in order
+/// `x_c - ((w_{c,r} x_r + w_{c,r+1} x_{r+1}) + (w_{c,r+2} x_{r+2} + w_{c,r+3} x_{r+3}))`,
+/// then for each remaining row `x_c - w_{c,r} x_r`: the operations of [`Layout::backward`]'s
+/// loops, with the `x`, `y`, `z` (and unused) lanes of the eight columns in one 8-wide register
+/// each and the weights of one row for the eight columns loaded together from the row-major
+/// copy.
+///
+/// # Safety
+/// The CPU has AVX; `wt` points to `m` rows `stride` apart of eight readable `f32`, `rows` to
+/// `m` row indices of rows of `x` that `xc` (eight rows) does not overlap.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx")]
+unsafe fn backward_cols8(
+    wt: *const f32,
+    stride: usize,
+    rows: *const u32,
+    m: usize,
+    x: *const [f32; 4],
+    xc: *mut [f32; 4],
+) {
+    use std::arch::x86_64::*;
+    // SAFETY (all pointer reads and writes): the caller's.
+    unsafe {
+        // (Macros, not closures: closures would not inherit this function's AVX.)
+        // Rows `k` and `k + 4` in the halves, then transposed to lanes.
+        macro_rules! half {
+            ($k:expr) => {
+                _mm256_loadu2_m128(xc.add($k + 4) as *const f32, xc.add($k) as *const f32)
+            };
+        }
+        let (m0, m1, m2, m3) = (half!(0), half!(1), half!(2), half!(3));
+        let (t0, t1) = (_mm256_unpacklo_ps(m0, m1), _mm256_unpackhi_ps(m0, m1));
+        let (t2, t3) = (_mm256_unpacklo_ps(m2, m3), _mm256_unpackhi_ps(m2, m3));
+        let mut v = [
+            _mm256_shuffle_ps::<0x44>(t0, t2),
+            _mm256_shuffle_ps::<0xEE>(t0, t2),
+            _mm256_shuffle_ps::<0x44>(t1, t3),
+        ];
+        let unused = _mm256_shuffle_ps::<0xEE>(t1, t3);
+        // Lane `d` of row `i` of `x` in all eight lanes.
+        macro_rules! lane {
+            ($i:expr, $d:expr) => {
+                _mm256_broadcast_ss(&*(x.add($i as usize) as *const f32).add($d))
+            };
+        }
+        let mut q = 0;
+        while q + 4 <= m {
+            let w0 = _mm256_loadu_ps(wt.add(q * stride));
+            let w1 = _mm256_loadu_ps(wt.add((q + 1) * stride));
+            let w2 = _mm256_loadu_ps(wt.add((q + 2) * stride));
+            let w3 = _mm256_loadu_ps(wt.add((q + 3) * stride));
+            let (r0, r1, r2, r3) = (
+                *rows.add(q),
+                *rows.add(q + 1),
+                *rows.add(q + 2),
+                *rows.add(q + 3),
+            );
+            for (d, vd) in v.iter_mut().enumerate() {
+                let p01 = _mm256_add_ps(
+                    _mm256_mul_ps(lane!(r0, d), w0),
+                    _mm256_mul_ps(lane!(r1, d), w1),
+                );
+                let p23 = _mm256_add_ps(
+                    _mm256_mul_ps(lane!(r2, d), w2),
+                    _mm256_mul_ps(lane!(r3, d), w3),
+                );
+                *vd = _mm256_sub_ps(*vd, _mm256_add_ps(p01, p23));
+            }
+            q += 4;
+        }
+        for q in q..m {
+            let (w, r) = (_mm256_loadu_ps(wt.add(q * stride)), *rows.add(q));
+            for (d, vd) in v.iter_mut().enumerate() {
+                *vd = _mm256_sub_ps(*vd, _mm256_mul_ps(lane!(r, d), w));
+            }
+        }
+        let (xy_lo, xy_hi) = (
+            _mm256_unpacklo_ps(v[0], v[1]),
+            _mm256_unpackhi_ps(v[0], v[1]),
+        );
+        let (zu_lo, zu_hi) = (
+            _mm256_unpacklo_ps(v[2], unused),
+            _mm256_unpackhi_ps(v[2], unused),
+        );
+        let out = [
+            _mm256_shuffle_ps::<0x44>(xy_lo, zu_lo),
+            _mm256_shuffle_ps::<0xEE>(xy_lo, zu_lo),
+            _mm256_shuffle_ps::<0x44>(xy_hi, zu_hi),
+            _mm256_shuffle_ps::<0xEE>(xy_hi, zu_hi),
+        ];
+        for (k, o) in out.iter().enumerate() {
+            _mm256_storeu2_m128(xc.add(k + 4) as *mut f32, xc.add(k) as *mut f32, *o);
+        }
+    }
 }
 
 impl Split {
@@ -1096,6 +1250,9 @@ impl ScalarCholesky {
         self.factor32.clear();
         if ok {
             self.factor32.extend(self.factor.iter().map(|&v| v as f32));
+            if let Some(layout) = &self.layout {
+                layout.append_row_major(&mut self.factor32);
+            }
         }
         ok
     }
@@ -1569,6 +1726,11 @@ mod tests {
                 .nodes
                 .iter()
                 .any(|s| s.size >= 2 && s.m >= 8 && s.m % 8 >= 4));
+            assert!(layout
+                .nodes
+                .iter()
+                .any(|s| s.size > 8 && s.size % 8 != 0 && s.m >= 4));
+            assert!(layout.nodes.iter().any(|s| s.size >= 8 && s.m % 4 != 0));
             let mut x: Vec<[f32; 4]> = layout
                 .fwd
                 .iter()
