@@ -88,15 +88,22 @@ struct Supernode {
     pat: usize,
     m: usize,
     /// Where the rows below the diagonal block start in row-major order (`m` rows of `size`
-    /// values) in the values given to the solve, after the factor's own values; only for
-    /// supernodes of [`BLOCK_COLUMNS`] and more columns (else `usize::MAX`).
+    /// values, each padded with zeros to [`row_stride`]) in the values given to the solve,
+    /// after the factor's own values; only for supernodes of [`BLOCK_COLUMNS`] and more
+    /// columns (else `usize::MAX`).
     tval: usize,
 }
 
-/// Columns of a supernode the AVX backward step treats eight at a time, coordinate by
-/// coordinate, from a row-major copy of the rows below the diagonal block
-/// ([`backward_cols8`]); supernodes with fewer columns have no copy.
-const BLOCK_COLUMNS: usize = 8;
+/// Supernodes of at least this many columns have the AVX backward step's rows below the
+/// diagonal block done eight columns at a time, coordinate by coordinate, from a row-major
+/// copy ([`backward_cols8`]); those with fewer columns have no copy.
+const BLOCK_COLUMNS: usize = 4;
+
+/// Values per row of the row-major copy of a supernode of `size` columns (whole blocks of
+/// eight).
+fn row_stride(size: usize) -> usize {
+    size.next_multiple_of(8)
+}
 
 /// faer's supernodal structure in plain arrays, with the fill-reducing permutation.
 #[derive(Debug)]
@@ -195,8 +202,8 @@ impl Layout {
                 pat: row_ptr[s],
                 m,
                 tval: if size >= BLOCK_COLUMNS {
-                    tval += size * m;
-                    tval - size * m
+                    tval += row_stride(size) * m;
+                    tval - row_stride(size) * m
                 } else {
                     usize::MAX
                 },
@@ -229,6 +236,7 @@ impl Layout {
                 for c in 0..s.size {
                     l.push(l[s.val + c * ld + r]);
                 }
+                l.resize(l.len() + row_stride(s.size) - s.size, 0.0);
             }
         }
     }
@@ -251,7 +259,7 @@ impl Layout {
         assert!(
             self.nodes
                 .iter()
-                .all(|s| s.tval == usize::MAX || s.tval + s.size * s.m <= l.len()),
+                .all(|s| s.tval == usize::MAX || s.tval + row_stride(s.size) * s.m <= l.len()),
             "row-major copies of the layout"
         );
         let xp = Rows(x.as_mut_ptr());
@@ -504,20 +512,35 @@ impl Layout {
         let bp = block.as_ptr();
         let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
         let mut q = 0;
-        // Columns `..c_lo` are done eight at a time by `backward_cols8` (all rows below).
+        // Columns `..c_lo` are done by `backward_cols8` (all rows below).
         let mut c_lo = 0;
         #[cfg(target_arch = "x86_64")]
         if WIDE && s.tval != usize::MAX {
-            c_lo = size / 8 * 8;
-            let wt = l[s.tval..s.tval + size * m].as_ptr();
+            let stride = row_stride(size);
+            let wt = l[s.tval..s.tval + stride * m].as_ptr();
             let rows: *const u32 = pat.as_ptr();
-            for c in (0..c_lo).step_by(8) {
-                // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the row-major copy
-                // (checked in `Layout::solve`) has `m` rows of `size >= c + 8` values, `pat`
-                // holds `m` row indices below `n`, and rows `start + c..start + c + 8` are
-                // columns of this supernode.
-                unsafe { backward_cols8(wt.add(c), size, rows, m, xp, xp.add(start + c)) };
+            for c in (0..size).step_by(8) {
+                let cols = (size - c).min(8);
+                // SAFETY (both calls): `run_avx` (the only caller with `WIDE`) has AVX; the
+                // row-major copy (checked in `Layout::solve`) has `m` rows of `stride >= c + 8`
+                // values, `pat` holds `m` row indices below `n`, and rows
+                // `start + c..start + c + cols` are columns of this supernode (the others of
+                // the last block are zero rows of a local copy, their weights zeros).
+                if cols == 8 {
+                    unsafe { backward_cols8(wt.add(c), stride, rows, m, xp, xp.add(start + c)) };
+                } else {
+                    let mut part = [[0.0f32; 4]; 8];
+                    for (k, row) in part.iter_mut().take(cols).enumerate() {
+                        *row = unsafe { *xp.add(start + c + k) };
+                    }
+                    unsafe { backward_cols8(wt.add(c), stride, rows, m, xp, part.as_mut_ptr()) };
+                    for (k, row) in part.iter().take(cols).enumerate() {
+                        unsafe { *xp.add(start + c + k) = *row };
+                    }
+                }
             }
+            // No columns left for the loops below.
+            (c_lo, q) = (size, m);
         }
         #[cfg(target_arch = "x86_64")]
         if WIDE {
@@ -562,7 +585,7 @@ impl Layout {
         }
         while q + 4 <= m {
             let xr = [0, 1, 2, 3].map(|k| at(pat[q + k] as usize));
-            for c in 0..size {
+            for c in c_lo..size {
                 let r = size + q;
                 let sum = xr[0]
                     .scaled(w(c, r))
@@ -1717,11 +1740,12 @@ mod tests {
             let layout = chol.layout.as_ref().unwrap();
             let split = layout.split.as_ref().expect("a split at this size");
             assert!(split.parts.iter().all(|p| !p.is_empty()) && !split.top.is_empty());
+            assert!(layout.nodes.iter().any(|s| s.size == 3 && s.m >= 4));
             assert!(layout
                 .nodes
                 .iter()
-                .any(|s| s.size % 2 == 1 && s.size > 2 && s.m >= 4));
-            assert!(layout.nodes.iter().any(|s| s.size % 2 == 0 && s.m >= 4));
+                .any(|s| (BLOCK_COLUMNS..8).contains(&s.size) && s.m % 4 != 0));
+            assert!(layout.nodes.iter().any(|s| s.size == 2 && s.m >= 4));
             assert!(layout
                 .nodes
                 .iter()
