@@ -87,6 +87,22 @@ struct Supernode {
     val: usize,
     pat: usize,
     m: usize,
+    /// Where the rows below the diagonal block start in row-major order (`m` rows of `size`
+    /// values, each padded with zeros to [`row_stride`]) in the values given to the solve,
+    /// after the factor's own values; only for supernodes of [`BLOCK_COLUMNS`] and more
+    /// columns (else `usize::MAX`).
+    tval: usize,
+}
+
+/// Supernodes of at least this many columns have the AVX backward step's rows below the
+/// diagonal block done eight columns at a time, coordinate by coordinate, from a row-major
+/// copy ([`backward_cols8`]); those with fewer columns have no copy.
+const BLOCK_COLUMNS: usize = 4;
+
+/// Values per row of the row-major copy of a supernode of `size` columns (whole blocks of
+/// eight).
+fn row_stride(size: usize) -> usize {
+    size.next_multiple_of(8)
 }
 
 /// faer's supernodal structure in plain arrays, with the fill-reducing permutation.
@@ -169,6 +185,8 @@ impl Layout {
         let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
         let (row_ptr, val_ptr) = (sn.col_ptr_for_row_idx(), sn.col_ptr_for_val());
         let mut nodes = Vec::with_capacity(sn.n_supernodes());
+        // The row-major copies follow the factor's values.
+        let mut tval = val_ptr[sn.n_supernodes()];
         for s in 0..sn.n_supernodes() {
             let size = end[s] - begin[s];
             let len = val_ptr[s + 1] - val_ptr[s];
@@ -183,6 +201,12 @@ impl Layout {
                 val: val_ptr[s],
                 pat: row_ptr[s],
                 m,
+                tval: if size >= BLOCK_COLUMNS {
+                    tval += row_stride(size) * m;
+                    tval - row_stride(size) * m
+                } else {
+                    usize::MAX
+                },
             });
         }
         if nodes.iter().any(|s| s.start + s.size > n) || sn.row_idx().iter().any(|&r| r >= n) {
@@ -202,6 +226,21 @@ impl Layout {
         })
     }
 
+    /// Appends to the single-precision factor values `l` the row-major copies of the rows below
+    /// the diagonal blocks of the supernodes that have one (see [`Supernode::tval`]).
+    fn append_row_major(&self, l: &mut Vec<f32>) {
+        for s in self.nodes.iter().filter(|s| s.tval != usize::MAX) {
+            debug_assert_eq!(l.len(), s.tval);
+            let ld = s.size + s.m;
+            for r in s.size..ld {
+                for c in 0..s.size {
+                    l.push(l[s.val + c * ld + r]);
+                }
+                l.resize(l.len() + row_stride(s.size) - s.size, 0.0);
+            }
+        }
+    }
+
     /// Solves `L L^T x = b` in place for the permuted right-hand sides `x` (four lanes per row:
     /// the coordinates) with the factor values `l`. Per supernode, forward: the dense triangle
     /// of the diagonal block, then the rows below four at a time, each row's update summed over
@@ -216,6 +255,12 @@ impl Layout {
                 .last()
                 .is_none_or(|s| s.val + (s.size + s.m) * s.size <= l.len()),
             "factor values of the layout"
+        );
+        assert!(
+            self.nodes
+                .iter()
+                .all(|s| s.tval == usize::MAX || s.tval + row_stride(s.size) * s.m <= l.len()),
+            "row-major copies of the layout"
         );
         let xp = Rows(x.as_mut_ptr());
         let Some(split) = &self.split else {
@@ -366,15 +411,51 @@ impl Layout {
         for c in 0..size {
             let xc = at(start + c).div(w(c, c));
             put(start + c, xc);
-            for r in c + 1..size {
+            let mut r = c + 1;
+            #[cfg(target_arch = "x86_64")]
+            if WIDE {
+                // The same updates two rows per 8-wide register (rows `start + r` and
+                // `start + r + 1` are adjacent, and so are their weights in column `c`).
+                // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads and writes
+                // are those of `w`, `at` and `put` below (`r + 1 < size`).
+                unsafe {
+                    let xw = Wide::broadcast(xp.add(start + c));
+                    while r + 4 <= size {
+                        let (p, wr) = (xp.add(start + r), bp.add(c * ld + r));
+                        let a = Wide::load(p).sub(Wide::pair(wr).mul(xw));
+                        let b = Wide::load(p.add(2)).sub(Wide::pair(wr.add(2)).mul(xw));
+                        a.store(p);
+                        b.store(p.add(2));
+                        r += 4;
+                    }
+                    if r + 2 <= size {
+                        let p = xp.add(start + r);
+                        Wide::load(p)
+                            .sub(Wide::pair(bp.add(c * ld + r)).mul(xw))
+                            .store(p);
+                        r += 2;
+                    }
+                }
+            }
+            for r in r..size {
                 put(start + r, at(start + r).sub_scaled(w(c, r), xc));
             }
         }
         let mut q = 0;
         #[cfg(target_arch = "x86_64")]
         if WIDE {
-            // The same sums as below, rows `q, q + 1` and `q + 2, q + 3` in the halves of two
-            // 8-wide accumulators.
+            // The same sums as below, eight rows at a time coordinate by coordinate (the
+            // rows' weights in column `c` are adjacent: one load per column and coordinate).
+            while q + 8 <= m {
+                // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads are those
+                // of `w` and `at` below for rows `q..q + 8` (`q + 8 <= m`).
+                let acc = unsafe { forward_rows8(bp.add(size + q), ld, size, xp.add(start)) };
+                for (k, a) in acc.iter().enumerate() {
+                    update(q + k, *a);
+                }
+                q += 8;
+            }
+            // Rows `q, q + 1` and `q + 2, q + 3` in the halves of two 8-wide accumulators.
             while q + 4 <= m {
                 // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads are those
                 // of `w` and `at` below.
@@ -431,6 +512,36 @@ impl Layout {
         let bp = block.as_ptr();
         let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
         let mut q = 0;
+        // Columns `..c_lo` are done by `backward_cols8` (all rows below).
+        let mut c_lo = 0;
+        #[cfg(target_arch = "x86_64")]
+        if WIDE && s.tval != usize::MAX {
+            let stride = row_stride(size);
+            let wt = l[s.tval..s.tval + stride * m].as_ptr();
+            let rows: *const u32 = pat.as_ptr();
+            for c in (0..size).step_by(8) {
+                let cols = (size - c).min(8);
+                // SAFETY (both calls): `run_avx` (the only caller with `WIDE`) has AVX; the
+                // row-major copy (checked in `Layout::solve`) has `m` rows of `stride >= c + 8`
+                // values, `pat` holds `m` row indices below `n`, and rows
+                // `start + c..start + c + cols` are columns of this supernode (the others of
+                // the last block are zero rows of a local copy, their weights zeros).
+                if cols == 8 {
+                    unsafe { backward_cols8(wt.add(c), stride, rows, m, xp, xp.add(start + c)) };
+                } else {
+                    let mut part = [[0.0f32; 4]; 8];
+                    for (k, row) in part.iter_mut().take(cols).enumerate() {
+                        *row = unsafe { *xp.add(start + c + k) };
+                    }
+                    unsafe { backward_cols8(wt.add(c), stride, rows, m, xp, part.as_mut_ptr()) };
+                    for (k, row) in part.iter().take(cols).enumerate() {
+                        unsafe { *xp.add(start + c + k) = *row };
+                    }
+                }
+            }
+            // No columns left for the loops below.
+            (c_lo, q) = (size, m);
+        }
         #[cfg(target_arch = "x86_64")]
         if WIDE {
             // The same sums as below for two columns at once (the halves of 8-wide registers),
@@ -440,8 +551,14 @@ impl Layout {
                 // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads and writes
                 // are those of `w`, `at` and `put` below.
                 unsafe {
-                    let xr = [0, 1, 2, 3].map(|k| Wide::broadcast(xp.add(pat[q + k] as usize)));
-                    let mut c = 0;
+                    // (No closures here: they would not inherit this function's AVX.)
+                    let xr = [
+                        Wide::broadcast(xp.add(pat[q] as usize)),
+                        Wide::broadcast(xp.add(pat[q + 1] as usize)),
+                        Wide::broadcast(xp.add(pat[q + 2] as usize)),
+                        Wide::broadcast(xp.add(pat[q + 3] as usize)),
+                    ];
+                    let mut c = c_lo;
                     while c + 2 <= size {
                         let wc = bp.add(c * ld + r);
                         let wn = bp.add((c + 1) * ld + r);
@@ -454,7 +571,7 @@ impl Layout {
                         Wide::load(p).sub(sum).store(p);
                         c += 2;
                     }
-                    let xr = xr.map(|x| x.low());
+                    let xr = [xr[0].low(), xr[1].low(), xr[2].low(), xr[3].low()];
                     for c in c..size {
                         let sum = xr[0]
                             .scaled(w(c, r))
@@ -468,7 +585,7 @@ impl Layout {
         }
         while q + 4 <= m {
             let xr = [0, 1, 2, 3].map(|k| at(pat[q + k] as usize));
-            for c in 0..size {
+            for c in c_lo..size {
                 let r = size + q;
                 let sum = xr[0]
                     .scaled(w(c, r))
@@ -480,7 +597,7 @@ impl Layout {
         }
         for q in q..m {
             let xr = at(pat[q] as usize);
-            for c in 0..size {
+            for c in c_lo..size {
                 put(start + c, at(start + c).sub_scaled(w(c, size + q), xr));
             }
         }
@@ -490,6 +607,155 @@ impl Layout {
                 xc = xc.sub_scaled(w(c, r), at(start + r));
             }
             put(start + c, xc.div(w(c, c)));
+        }
+    }
+}
+
+/// The forward step's sums of eight rows below a diagonal block: for `k < 8`, lane by lane,
+/// `0 + w[0 * ld + k] x[0] + ... + w[(size - 1) * ld + k] x[size - 1]` (each product added in
+/// column order, separate multiply and add), as the four lanes of a row: the same operations
+/// as [`Lane::add_scaled`] over the columns, the `x`, `y` and `z` lanes of the eight rows in
+/// one 8-wide register each (the unused fourth lane is `0`, as `0 + w 0` is).
+///
+/// # Safety
+/// The CPU has AVX; `w` points to `size` columns `ld` apart of eight readable `f32`, `x` to
+/// `size` readable rows.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx")]
+unsafe fn forward_rows8(w: *const f32, ld: usize, size: usize, x: *const [f32; 4]) -> [Lane; 8] {
+    use std::arch::x86_64::*;
+    let (mut ax, mut ay, mut az) = (
+        _mm256_setzero_ps(),
+        _mm256_setzero_ps(),
+        _mm256_setzero_ps(),
+    );
+    for c in 0..size {
+        // SAFETY: the caller's.
+        unsafe {
+            let wc = _mm256_loadu_ps(w.add(c * ld));
+            let xc = x.add(c) as *const f32;
+            ax = _mm256_add_ps(ax, _mm256_mul_ps(wc, _mm256_broadcast_ss(&*xc)));
+            ay = _mm256_add_ps(ay, _mm256_mul_ps(wc, _mm256_broadcast_ss(&*xc.add(1))));
+            az = _mm256_add_ps(az, _mm256_mul_ps(wc, _mm256_broadcast_ss(&*xc.add(2))));
+        }
+    }
+    // Transpose to rows `(x, y, z, 0)`: rows `k` and `k + 4` in the halves of `r[k]`.
+    let zero = _mm256_setzero_ps();
+    let (xy_lo, xy_hi) = (_mm256_unpacklo_ps(ax, ay), _mm256_unpackhi_ps(ax, ay));
+    let (z_lo, z_hi) = (_mm256_unpacklo_ps(az, zero), _mm256_unpackhi_ps(az, zero));
+    let r = [
+        _mm256_shuffle_ps::<0x44>(xy_lo, z_lo),
+        _mm256_shuffle_ps::<0xEE>(xy_lo, z_lo),
+        _mm256_shuffle_ps::<0x44>(xy_hi, z_hi),
+        _mm256_shuffle_ps::<0xEE>(xy_hi, z_hi),
+    ];
+    [
+        Lane(_mm256_castps256_ps128(r[0])),
+        Lane(_mm256_castps256_ps128(r[1])),
+        Lane(_mm256_castps256_ps128(r[2])),
+        Lane(_mm256_castps256_ps128(r[3])),
+        Lane(_mm256_extractf128_ps::<1>(r[0])),
+        Lane(_mm256_extractf128_ps::<1>(r[1])),
+        Lane(_mm256_extractf128_ps::<1>(r[2])),
+        Lane(_mm256_extractf128_ps::<1>(r[3])),
+    ]
+}
+
+/// The backward step's updates of eight columns of a supernode from all rows below its
+/// diagonal block: per column `c` and lane, for each group of four rows `r..r + 4` in order
+/// `x_c - ((w_{c,r} x_r + w_{c,r+1} x_{r+1}) + (w_{c,r+2} x_{r+2} + w_{c,r+3} x_{r+3}))`,
+/// then for each remaining row `x_c - w_{c,r} x_r`: the operations of [`Layout::backward`]'s
+/// loops, with the `x`, `y`, `z` (and unused) lanes of the eight columns in one 8-wide register
+/// each and the weights of one row for the eight columns loaded together from the row-major
+/// copy.
+///
+/// # Safety
+/// The CPU has AVX; `wt` points to `m` rows `stride` apart of eight readable `f32`, `rows` to
+/// `m` row indices of rows of `x` that `xc` (eight rows) does not overlap.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx")]
+unsafe fn backward_cols8(
+    wt: *const f32,
+    stride: usize,
+    rows: *const u32,
+    m: usize,
+    x: *const [f32; 4],
+    xc: *mut [f32; 4],
+) {
+    use std::arch::x86_64::*;
+    // SAFETY (all pointer reads and writes): the caller's.
+    unsafe {
+        // (Macros, not closures: closures would not inherit this function's AVX.)
+        // Rows `k` and `k + 4` in the halves, then transposed to lanes.
+        macro_rules! half {
+            ($k:expr) => {
+                _mm256_loadu2_m128(xc.add($k + 4) as *const f32, xc.add($k) as *const f32)
+            };
+        }
+        let (m0, m1, m2, m3) = (half!(0), half!(1), half!(2), half!(3));
+        let (t0, t1) = (_mm256_unpacklo_ps(m0, m1), _mm256_unpackhi_ps(m0, m1));
+        let (t2, t3) = (_mm256_unpacklo_ps(m2, m3), _mm256_unpackhi_ps(m2, m3));
+        let mut v = [
+            _mm256_shuffle_ps::<0x44>(t0, t2),
+            _mm256_shuffle_ps::<0xEE>(t0, t2),
+            _mm256_shuffle_ps::<0x44>(t1, t3),
+        ];
+        let unused = _mm256_shuffle_ps::<0xEE>(t1, t3);
+        // Lane `d` of row `i` of `x` in all eight lanes.
+        macro_rules! lane {
+            ($i:expr, $d:expr) => {
+                _mm256_broadcast_ss(&*(x.add($i as usize) as *const f32).add($d))
+            };
+        }
+        let mut q = 0;
+        while q + 4 <= m {
+            let w0 = _mm256_loadu_ps(wt.add(q * stride));
+            let w1 = _mm256_loadu_ps(wt.add((q + 1) * stride));
+            let w2 = _mm256_loadu_ps(wt.add((q + 2) * stride));
+            let w3 = _mm256_loadu_ps(wt.add((q + 3) * stride));
+            let (r0, r1, r2, r3) = (
+                *rows.add(q),
+                *rows.add(q + 1),
+                *rows.add(q + 2),
+                *rows.add(q + 3),
+            );
+            for (d, vd) in v.iter_mut().enumerate() {
+                let p01 = _mm256_add_ps(
+                    _mm256_mul_ps(lane!(r0, d), w0),
+                    _mm256_mul_ps(lane!(r1, d), w1),
+                );
+                let p23 = _mm256_add_ps(
+                    _mm256_mul_ps(lane!(r2, d), w2),
+                    _mm256_mul_ps(lane!(r3, d), w3),
+                );
+                *vd = _mm256_sub_ps(*vd, _mm256_add_ps(p01, p23));
+            }
+            q += 4;
+        }
+        for q in q..m {
+            let (w, r) = (_mm256_loadu_ps(wt.add(q * stride)), *rows.add(q));
+            for (d, vd) in v.iter_mut().enumerate() {
+                *vd = _mm256_sub_ps(*vd, _mm256_mul_ps(lane!(r, d), w));
+            }
+        }
+        let (xy_lo, xy_hi) = (
+            _mm256_unpacklo_ps(v[0], v[1]),
+            _mm256_unpackhi_ps(v[0], v[1]),
+        );
+        let (zu_lo, zu_hi) = (
+            _mm256_unpacklo_ps(v[2], unused),
+            _mm256_unpackhi_ps(v[2], unused),
+        );
+        let out = [
+            _mm256_shuffle_ps::<0x44>(xy_lo, zu_lo),
+            _mm256_shuffle_ps::<0xEE>(xy_lo, zu_lo),
+            _mm256_shuffle_ps::<0x44>(xy_hi, zu_hi),
+            _mm256_shuffle_ps::<0xEE>(xy_hi, zu_hi),
+        ];
+        for (k, o) in out.iter().enumerate() {
+            _mm256_storeu2_m128(xc.add(k + 4) as *mut f32, xc.add(k) as *mut f32, *o);
         }
     }
 }
@@ -772,6 +1038,22 @@ impl Wide {
         let pick = _mm256_setr_epi32(k, k, k, k, k + 1, k + 1, k + 1, k + 1);
         Wide(_mm256_permutevar_ps(both, pick))
     }
+    /// `w[0]` in the low half's lanes and `w[1]` in the high half's.
+    ///
+    /// # Safety
+    /// `w` points to two readable `f32`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    unsafe fn pair(w: *const f32) -> Wide {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller's (eight bytes, read unaligned).
+        let two = unsafe { std::ptr::read_unaligned(w as *const f64) };
+        let both = _mm256_castpd_ps(_mm256_set1_pd(two));
+        Wide(_mm256_permutevar_ps(
+            both,
+            _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1),
+        ))
+    }
     /// `a[k]` in the low half's lanes and `b[k]` in the high half's.
     ///
     /// # Safety
@@ -991,6 +1273,9 @@ impl ScalarCholesky {
         self.factor32.clear();
         if ok {
             self.factor32.extend(self.factor.iter().map(|&v| v as f32));
+            if let Some(layout) = &self.layout {
+                layout.append_row_major(&mut self.factor32);
+            }
         }
         ok
     }
@@ -1455,11 +1740,21 @@ mod tests {
             let layout = chol.layout.as_ref().unwrap();
             let split = layout.split.as_ref().expect("a split at this size");
             assert!(split.parts.iter().all(|p| !p.is_empty()) && !split.top.is_empty());
+            assert!(layout.nodes.iter().any(|s| s.size == 3 && s.m >= 4));
             assert!(layout
                 .nodes
                 .iter()
-                .any(|s| s.size % 2 == 1 && s.size > 2 && s.m >= 4));
-            assert!(layout.nodes.iter().any(|s| s.size % 2 == 0 && s.m >= 4));
+                .any(|s| (BLOCK_COLUMNS..8).contains(&s.size) && s.m % 4 != 0));
+            assert!(layout.nodes.iter().any(|s| s.size == 2 && s.m >= 4));
+            assert!(layout
+                .nodes
+                .iter()
+                .any(|s| s.size >= 2 && s.m >= 8 && s.m % 8 >= 4));
+            assert!(layout
+                .nodes
+                .iter()
+                .any(|s| s.size > 8 && s.size % 8 != 0 && s.m >= 4));
+            assert!(layout.nodes.iter().any(|s| s.size >= 8 && s.m % 4 != 0));
             let mut x: Vec<[f32; 4]> = layout
                 .fwd
                 .iter()
