@@ -435,6 +435,22 @@ fn par_cutoff() -> u32 {
     }
 }
 
+/// The box of leaf `n`'s slot boxes.
+#[inline]
+fn leaf_box(n: &Node, slots: &[Aabb]) -> Aabb {
+    slots[n.start as usize..(n.start + n.count) as usize]
+        .iter()
+        .fold(Aabb::EMPTY, |a, b| a.union(b))
+}
+
+/// Stores `b` (and its half area) as the box of `node`; returns `b`.
+#[inline]
+fn set_box(node: &mut Node, b: Aabb) -> Aabb {
+    node.aabb = b;
+    node.half_area = b.half_area();
+    b
+}
+
 /// Refits the subtree whose nodes are `nodes` (pre-order, so a subtree is contiguous: its
 /// root, then the left subtree, then the right one; `offset` = global index of `nodes[0]`)
 /// from the slot boxes; returns its box. Subtrees of at least `cutoff` primitives refit their
@@ -442,9 +458,7 @@ fn par_cutoff() -> u32 {
 fn refit_subtree(nodes: &mut [Node], offset: usize, slots: &[Aabb], cutoff: u32) -> Aabb {
     let n = nodes[0];
     let b = if n.is_leaf() {
-        slots[n.start as usize..(n.start + n.count) as usize]
-            .iter()
-            .fold(Aabb::EMPTY, |a, b| a.union(b))
+        leaf_box(&n, slots)
     } else {
         let (l, r) = (n.start as usize - offset, n.right as usize - offset);
         let (left, right) = nodes[l..].split_at_mut(r - l);
@@ -461,9 +475,7 @@ fn refit_subtree(nodes: &mut [Node], offset: usize, slots: &[Aabb], cutoff: u32)
         };
         bl.union(&br)
     };
-    nodes[0].aabb = b;
-    nodes[0].half_area = b.half_area();
-    b
+    set_box(&mut nodes[0], b)
 }
 
 /// [`refit_subtree`] (sequential) of only the subtrees with a dirty slot (`dirty[s]`: dirty
@@ -474,9 +486,7 @@ fn refit_dirty(nodes: &mut [Node], offset: usize, slots: &[Aabb], dirty: &[u32])
         return n.aabb;
     }
     let b = if n.is_leaf() {
-        slots[n.start as usize..(n.start + n.count) as usize]
-            .iter()
-            .fold(Aabb::EMPTY, |a, b| a.union(b))
+        leaf_box(&n, slots)
     } else {
         let (l, r) = (n.start as usize - offset, n.right as usize - offset);
         let (left, right) = nodes[l..].split_at_mut(r - l);
@@ -484,9 +494,7 @@ fn refit_dirty(nodes: &mut [Node], offset: usize, slots: &[Aabb], dirty: &[u32])
         let br = refit_dirty(right, offset + r, slots, dirty);
         bl.union(&br)
     };
-    nodes[0].aabb = b;
-    nodes[0].half_area = b.half_area();
-    b
+    set_box(&mut nodes[0], b)
 }
 
 /// [`Aabb::overlaps`] without short-circuiting (the six comparisons are cheaper than the
