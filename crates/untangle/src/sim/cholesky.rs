@@ -14,7 +14,13 @@
 //! rows below the diagonal block four at a time (faer's solve of one or two columns spends most
 //! of its instructions outside the arithmetic at this size; branch sim9, BENCHMARKS.md), with
 //! AVX two rows (forward) or two columns (backward) per 8-wide register, lane by lane the same
-//! operations (branch sim11). Large
+//! operations (branch sim11). With AVX, the forward step takes the rows below a block eight at
+//! a time and the backward step the columns of a supernode of four or more columns eight at a
+//! time, coordinate by coordinate (the `x`, `y`, `z` lanes of eight rows or columns in one
+//! register each, so a column's or row's eight weights are one load; the backward step reads
+//! a row-major copy of the rows below each such block, appended to the single-precision
+//! factor), and the forward triangle two rows per register: the same operations per lane in
+//! the same order, the same bits (branch sim12). Large
 //! factors run it on two threads: the elimination tree is cut into a top and two parts of
 //! hanging subtrees of about equal work, which are substituted side by side; the updates of
 //! the top rows are logged and applied in supernode order, so every row sees the same
@@ -229,14 +235,30 @@ impl Layout {
     /// Appends to the single-precision factor values `l` the row-major copies of the rows below
     /// the diagonal blocks of the supernodes that have one (see [`Supernode::tval`]).
     fn append_row_major(&self, l: &mut Vec<f32>) {
+        let base = l.len();
+        let end = self
+            .nodes
+            .iter()
+            .filter(|s| s.tval != usize::MAX)
+            .map(|s| s.tval + row_stride(s.size) * s.m)
+            .max()
+            .unwrap_or(base);
+        assert!(
+            self.nodes
+                .iter()
+                .all(|s| s.tval == usize::MAX || s.tval >= base),
+            "the copies follow the factor's values"
+        );
+        l.resize(end, 0.0);
+        let (factor, copies) = l.split_at_mut(base);
         for s in self.nodes.iter().filter(|s| s.tval != usize::MAX) {
-            debug_assert_eq!(l.len(), s.tval);
-            let ld = s.size + s.m;
-            for r in s.size..ld {
-                for c in 0..s.size {
-                    l.push(l[s.val + c * ld + r]);
+            let (ld, stride) = (s.size + s.m, row_stride(s.size));
+            let out = &mut copies[s.tval - base..s.tval - base + stride * s.m];
+            let block = &factor[s.val..s.val + ld * s.size];
+            for (c, col) in block.chunks_exact(ld).enumerate() {
+                for (o, &v) in out.iter_mut().skip(c).step_by(stride).zip(&col[s.size..]) {
+                    *o = v;
                 }
-                l.resize(l.len() + row_stride(s.size) - s.size, 0.0);
             }
         }
     }
