@@ -81,26 +81,20 @@ fn summary_counts_panels_and_seam_vertices() {
     let one = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
                vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt -1 0\n\
                f 1/1 2/2 3/3\nf 1/5 3/3 4/4\n";
-    std::fs::write(d.path().join("one.obj"), one).unwrap();
-    let o = untangle(&["check", "one.obj"], d.path());
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert!(
-        stdout(&o).contains("one: 1 panel, 1 seam vertex\n"),
-        "{}",
-        stdout(&o)
-    );
     // Two panels: the same square's second triangle in a uv island of its own.
     let two = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
                vt 0 0\nvt 1 0\nvt 1 1\nvt 5 5\nvt 6 6\nvt 5 6\n\
                f 1/1 2/2 3/3\nf 1/4 3/5 4/6\n";
-    std::fs::write(d.path().join("two.obj"), two).unwrap();
-    let o = untangle(&["check", "two.obj"], d.path());
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert!(
-        stdout(&o).contains("two: 2 panels, 2 seam vertices\n"),
-        "{}",
-        stdout(&o)
-    );
+    for (name, obj, summary) in [
+        ("one", one, "one: 1 panel, 1 seam vertex\n"),
+        ("two", two, "two: 2 panels, 2 seam vertices\n"),
+    ] {
+        let file = format!("{name}.obj");
+        std::fs::write(d.path().join(&file), obj).unwrap();
+        let o = untangle(&["check", &file], d.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        assert!(stdout(&o).contains(summary), "{}", stdout(&o));
+    }
 }
 
 #[test]

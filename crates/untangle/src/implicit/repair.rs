@@ -479,12 +479,7 @@ pub fn repair(
                 let base = starts[k] as usize;
                 let from = params.coarse_edge * l.separation.max(params.min_step);
                 for t in &l.mesh.triangles {
-                    let [a, b, d] = t.map(|v| pos[base + v as usize]);
-                    let l2 = (a - b)
-                        .norm_squared()
-                        .max((b - d).norm_squared())
-                        .max((d - a).norm_squared());
-                    if l2 > from * from {
+                    if longest_edge_squared(t.map(|v| pos[base + v as usize])) > from * from {
                         for &v in t {
                             c[base + v as usize] = true;
                         }
@@ -894,13 +889,8 @@ fn snap_goals(
         if params.coarse_edge <= 0.0 || o >= ng {
             return params.coarse_edge <= 0.0;
         }
-        let [a, b, c] = stack.tris[t].map(|v| pos[v as usize]);
-        let l2 = (a - b)
-            .norm_squared()
-            .max((b - c).norm_squared())
-            .max((c - a).norm_squared());
         let from = params.coarse_edge * layers[o].separation;
-        l2 > from * from
+        longest_edge_squared(stack.tris[t].map(|v| pos[v as usize])) > from * from
     };
     // Whether a triangle of object `o` lies within `radius` of `p` (the cheap test first: most
     // contacts are at the rule).
@@ -1606,6 +1596,15 @@ fn separate_pairs(
     }
     rep.remaining = stack.object_pairs(pos, &statics).len();
     (rep, statics)
+}
+
+/// The squared length of the longest edge of the triangle with corners `p` (what makes a
+/// triangle *coarse* for [`RepairParams::coarse_edge`]).
+fn longest_edge_squared([a, b, c]: [Vec3; 3]) -> f64 {
+    (a - b)
+        .norm_squared()
+        .max((b - c).norm_squared())
+        .max((c - a).norm_squared())
 }
 
 #[cfg(test)]

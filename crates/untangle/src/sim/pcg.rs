@@ -723,11 +723,7 @@ mod tests {
         for seed in 0..6u64 {
             let n = 40;
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let pairs: Vec<(u32, u32)> = (0..n as u32)
-                .map(|i| (i, (i + 1) % n as u32))
-                .chain((0..n as u32).map(|i| (i, (i * 7 + 3) % n as u32)))
-                .filter(|(i, j)| i != j)
-                .collect();
+            let pairs = ring_with_chords(n);
             let p = BsrPattern::from_pairs(n, pairs.clone());
             // A scalar Laplacian plus a mass diagonal (SPD), factored.
             let mut values = vec![0.0; p.cols.len()];
@@ -823,14 +819,19 @@ mod tests {
         }
     }
 
-    /// A random SPD block system on a ring-with-chords pattern.
-    fn random_system(n: usize, seed: u64) -> (BsrPattern, BsrMatrix, Vec<Vec3>) {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let pairs: Vec<(u32, u32)> = (0..n as u32)
+    /// The off-diagonal pairs of a ring of `n` vertices with chords `i -> 7 i + 3 (mod n)`.
+    fn ring_with_chords(n: usize) -> Vec<(u32, u32)> {
+        (0..n as u32)
             .map(|i| (i, (i + 1) % n as u32))
             .chain((0..n as u32).map(|i| (i, (i * 7 + 3) % n as u32)))
             .filter(|(i, j)| i != j)
-            .collect();
+            .collect()
+    }
+
+    /// A random SPD block system on a ring-with-chords pattern.
+    fn random_system(n: usize, seed: u64) -> (BsrPattern, BsrMatrix, Vec<Vec3>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let pairs = ring_with_chords(n);
         let p = BsrPattern::from_pairs(n, pairs.clone());
         let mut a = BsrMatrix::zeros(&p);
         // Sum of PSD element matrices (like springs) plus a mass diagonal: SPD.
