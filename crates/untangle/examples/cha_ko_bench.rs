@@ -42,7 +42,7 @@ fn main() {
     p.sim.gravity = Vec3::zeros();
     p.max_steps = steps;
     // UNTANGLE_INTEGRATOR=projective: projective dynamics (see `common`).
-    p.sim = common::integrator_params(p.sim);
+    common::loop_params(&mut p);
     let mut r = Resolver::new(&g, p).expect("resolver");
     let t = std::time::Instant::now();
     // The loop of `Resolver::run`, driven here so that CHA_KO_BENCH_VERBOSE=1 can print each

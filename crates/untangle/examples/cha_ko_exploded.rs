@@ -3,7 +3,8 @@
 //! (`Resolver`, gravity off) for each seed. Per seed it prints the steps until resolved (clean
 //! and every uv edit revoked), the first clean step, whether the red-vertex count never increased
 //! from one step to the next (the paper's theorem, part 1), the first increase if any, whether an
-//! independent analysis of the final positions is clean, and the wall time; then the summary
+//! independent analysis of the final positions is clean, the wall time and the largest relative
+//! edge stretch (over the run / at the end); then the summary
 //! (resolved, median steps, monotone seeds). `CHAKO_SAVE_DIR=DIR` writes the final cloth of
 //! every seed that did not resolve as `DIR/seedS.obj` (for `untangle check`).
 //!
@@ -27,8 +28,8 @@ fn main() {
             .unwrap_or(d)
     };
     let (first, last, cells, max_steps) = (arg(1, 1), arg(2, 50), arg(3, 14), arg(4, 400));
-    println!("| seed | pairs | outcome | steps | clean at | red monotone | first increase (step: from -> to) | increases | final clean (independent) | wall s | trial: steps retried / retries / accepted with increase |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| seed | pairs | outcome | steps | clean at | red monotone | first increase (step: from -> to) | increases | final clean (independent) | wall s | trial: steps retried / retries / accepted with increase | max stretch (run / final) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut trial_total = [0usize; 3];
     let mut steps_resolved = Vec::new();
     let mut resolved = 0;
@@ -44,7 +45,7 @@ fn main() {
         p.sim.gravity = Vec3::zeros();
         p.max_steps = max_steps as usize;
         // UNTANGLE_INTEGRATOR=projective: projective dynamics (see `common`).
-        p.sim = common::integrator_params(p.sim);
+        common::loop_params(&mut p);
         // Parameter experiments: CHAKO_REGIONLESS_AFTER (0 = off), CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA,
         // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT,
         // CHAKO_ZONE_SPIN (0: impact zones translate), CHAKO_ZONE_SOFT (soft zone levels),
@@ -100,10 +101,9 @@ fn main() {
         let mut reds: Vec<usize> = Vec::new();
         // Trial step: steps with a retry, retries, steps accepted with a newly red vertex.
         let mut trial = [0usize; 3];
-        let s = r
-            .run(|st| {
-                if trace {
-                    eprintln!(
+        let (s, tracked) = common::run_tracking(&mut r, |st| {
+            if trace {
+                eprintln!(
                         "seed {seed} step {} pairs {} red {} ops {} pulls {}+{} shrinks {}+{} | trial retries {} newly red {} -> {} blocked {} all_new {} stop {} released {} | zones {} ms sim {:.0}",
                         st.step,
                         st.intersecting_pairs,
@@ -123,13 +123,12 @@ fn main() {
                         st.impact_zones,
                         st.ms_sim
                     );
-                }
-                reds.push(st.red_vertices);
-                trial[0] += (st.trial.retries > 0) as usize;
-                trial[1] += st.trial.retries as usize;
-                trial[2] += (st.trial.red_increase_accepted > 0) as usize;
-            })
-            .expect("run");
+            }
+            reds.push(st.red_vertices);
+            trial[0] += (st.trial.retries > 0) as usize;
+            trial[1] += st.trial.retries as usize;
+            trial[2] += (st.trial.red_increase_accepted > 0) as usize;
+        });
         trial_total.iter_mut().zip(trial).for_each(|(t, x)| *t += x);
         let wall = t.elapsed().as_secs_f64();
         let increases: Vec<(usize, usize, usize)> = reds
@@ -158,7 +157,7 @@ fn main() {
             independent_clean += 1;
         }
         println!(
-            "| {seed} | {} | {:?} | {} | {} | {} | {} | {} | {} | {:.1} | {} / {} / {} |",
+            "| {seed} | {} | {:?} | {} | {} | {} | {} | {} | {} | {:.1} | {} / {} / {} | {:.3} / {:.3} |",
             s.initial_pairs,
             s.outcome,
             s.steps,
@@ -172,7 +171,9 @@ fn main() {
             wall,
             trial[0],
             trial[1],
-            trial[2]
+            trial[2],
+            tracked.max_stretch,
+            tracked.final_stretch
         );
     }
     steps_resolved.sort_unstable();

@@ -6,7 +6,9 @@
 //! then the loop of Fig. 1b (`Resolver`: analysis, uv-space update, simulator step with m-CCH)
 //! runs with the same pins and gravity until resolved, stuck or `max_steps`. Prints one row per
 //! garment: vertices, intersecting pairs after tangling, outcome, steps, first clean step, final
-//! pairs, mean ms per step (analysis / uv / simulation) and wall time.
+//! pairs, mean ms per step (analysis / uv / simulation), wall time, the largest relative edge
+//! stretch (over the run / at the end) and the final elastic and kinetic energies.
+//! `UNTANGLE_INTEGRATOR` and `UNTANGLE_PD_CG_CAP` as in `common::loop_params`.
 //!
 //! ```text
 //! cargo run --release -p untangle --example cha_ko_garments -- [min_vertices] [tangle_steps] [max_steps]
@@ -23,8 +25,8 @@ use untangle::methods::cha_ko::{ResolveParams, Resolver};
 fn main() {
     use common::arg;
     let (min_vertices, tangle_steps, max_steps) = (arg(1, 2000), arg(2, 25), arg(3, 600));
-    println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s | max stretch (run / final) | final elastic / kinetic J |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     // CHAKO_ONLY=<name>: one garment; CHAKO_STALLS=1: print the last stalls of a run;
     // CHAKO_KINDS=1: the path kinds (and their inside-region sizes) before and after;
     // CHAKO_WRITE=<dir>: the tangled garment as <dir>/<name>_tangled.obj.
@@ -60,6 +62,8 @@ fn main() {
         let mut p = ResolveParams::default();
         p.sim.gravity = gravity;
         p.max_steps = max_steps;
+        // UNTANGLE_INTEGRATOR=pd, UNTANGLE_PD_CG_CAP (see `common`).
+        common::loop_params(&mut p);
         // Ablations: CHAKO_REVOKE, CHAKO_LAST_RESORT=0, CHAKO_AVOID_LOOP_PULL=1,
         // CHAKO_AVOID_LOOP_PULL_START=1, CHAKO_ZONE_SOFT
         // (the simulator's soft impact-zone levels; 0 = rigid zones).
@@ -85,10 +89,10 @@ fn main() {
         for &v in &pins {
             r.simulator_mut().set_pinned(v, true).expect("pin");
         }
-        let s = r.run(|_| {}).expect("run");
+        let (s, tracked) = common::run_tracking(&mut r, |_| {});
         let wall = t.elapsed().as_secs_f64();
         println!(
-            "| {name} | {} | {} | {} | {bli} | {:?} | {} | {} | {} | {:.1} / {:.2} / {:.1} | {:.1} |",
+            "| {name} | {} | {} | {} | {bli} | {:?} | {} | {} | {} | {:.1} / {:.2} / {:.1} | {:.1} | {:.3} / {:.3} | {:.3e} / {:.3e} |",
             mesh.positions.len(),
             mesh.triangles.len(),
             a0.segments.len(),
@@ -99,7 +103,11 @@ fn main() {
             s.mean_ms[0],
             s.mean_ms[1],
             s.mean_ms[2],
-            wall
+            wall,
+            tracked.max_stretch,
+            tracked.final_stretch,
+            tracked.final_elastic,
+            tracked.final_kinetic
         );
         if std::env::var("CHAKO_KINDS").is_ok() {
             let a1 = analyze(&am, r.simulator().positions()).expect("analysis");

@@ -6,7 +6,8 @@
 //! with NAME a scene of `untangle scene` (`closed`, `ll`, `eight`, `cross`, `bbii`, `bibi`, `bli`)
 //! or `exploded` (SIZE = cells per side); env `MAX_STEPS`, `STUCK`, `NO_UV=1` (m-CCH alone),
 //! `CHAKO_ZONE_SOFT`, `CHAKO_ZONE_SPIN` (the simulator's `ZoneMotion`), `CHAKO_AVOID_LOOP_PULL`,
-//! `CHAKO_REVOKE`, the trial step's `CHAKO_TRIAL*` (see `common::trial_params`).
+//! `CHAKO_REVOKE`, the trial step's `CHAKO_TRIAL*` (see `common::trial_params`),
+//! `UNTANGLE_INTEGRATOR` and `UNTANGLE_PD_CG_CAP` (see `common::loop_params`).
 mod common;
 
 use untangle::analysis::AnalysisMesh;
@@ -50,6 +51,8 @@ fn main() {
         p.cha_ko.revoke_levels_per_step = v.parse().unwrap();
     }
     common::trial_params(&mut p.cha_ko);
+    // UNTANGLE_INTEGRATOR=pd, UNTANGLE_PD_CG_CAP (see `common::loop_params`).
+    common::loop_params(&mut p);
     // Ablation: m-CCH alone, no uv-space update.
     p.uv_update = std::env::var("NO_UV").is_err();
     if !p.uv_update {
@@ -62,9 +65,8 @@ fn main() {
         p.cha_ko.hold_steps = h.parse().unwrap();
     }
     let mut r = Resolver::new(&g, p).unwrap();
-    let s = r
-        .run(|st| {
-            println!(
+    let (s, tracked) = common::run_tracking(&mut r, |st| {
+        println!(
                 "{} pairs {} tang {} red {} rtri {} | pull +{} ~{} shrink +{} ~{} rev {} blk {}/{} act {} sat {} fb {} st {} | trial {} new {} inc {} blk {} | aq {} z {} | {:.1} {:.1} {:.1} ms",
                 st.step, st.intersecting_pairs, st.tanglements, st.red_vertices, st.red_triangles,
                 st.uv.pulls_started, st.uv.pulls_continued, st.uv.shrinks_started, st.uv.shrinks_continued,
@@ -73,8 +75,11 @@ fn main() {
                 st.trial.retries, st.trial.newly_red_first, st.trial.red_increase_accepted, st.trial.blocked_pairs,
                 st.administrative_quit, st.impact_zones, st.ms_analysis, st.ms_uv, st.ms_sim
             )
-        })
-        .unwrap();
+    });
+    println!(
+        "max stretch (run / final) {:.3} / {:.3}, final elastic / kinetic energy {:.3e} / {:.3e} J",
+        tracked.max_stretch, tracked.final_stretch, tracked.final_elastic, tracked.final_kinetic
+    );
     let mut s2 = s.clone();
     s2.stalls.truncate(5);
     println!("{}", serde_json::to_string(&s2).unwrap());

@@ -6,6 +6,7 @@ use untangle::analysis::{analyze, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
 use untangle::methods::cha_ko::{Outcome, ResolveParams, Resolver, StallReason};
+use untangle::sim::SimParams;
 
 fn params(max_steps: usize) -> ResolveParams {
     let mut p = ResolveParams::default();
@@ -270,4 +271,55 @@ fn sagged_garments_resolve() {
             assert_eq!(r.simulator().positions()[v as usize], pos0[v as usize]);
         }
     }
+}
+
+#[test]
+fn the_projective_cg_cap_reaches_the_loops_simulator_only() {
+    // `ResolveParams::projective_cg_cap` replaces the simulator's CG cap per projective global
+    // step inside the loop; plain simulation, and the loop under Baraff & Witkin, keep theirs.
+    use untangle::sim::{Integrator, Simulator};
+    let g = Garment::new(untangle::scenes::exploded::exploded(2, 10).meshes[0].clone()).unwrap();
+    let full = SimParams::default().projective_cg_iterations;
+    assert!(full > 1);
+    let pd = |cap: Option<usize>| {
+        let mut p = params(5);
+        p.sim.integrator = Integrator::Projective;
+        p.projective_cg_cap = cap;
+        p
+    };
+    let cap_of = |p: ResolveParams| {
+        Resolver::new(&g, p)
+            .unwrap()
+            .simulator()
+            .params()
+            .projective_cg_iterations
+    };
+    assert_eq!(cap_of(pd(Some(1))), 1);
+    assert_eq!(cap_of(pd(Some(3))), 3);
+    assert_eq!(cap_of(pd(None)), full);
+    let mut bw = pd(Some(1));
+    bw.sim.integrator = Integrator::BaraffWitkin;
+    assert_eq!(cap_of(bw), full);
+    // The loop's settings themselves are untouched: a simulator built from them (plain
+    // simulation) has the full CG.
+    let p = pd(Some(1));
+    assert_eq!(p.sim.projective_cg_iterations, full);
+    let sim = Simulator::new(&g, p.sim.clone()).unwrap();
+    assert_eq!(sim.params().projective_cg_iterations, full);
+    // And it acts: capped at 1, no global step of the loop runs more than one CG iteration;
+    // uncapped, some do (the exploded cloth is full of contact springs from the first step).
+    let cg = |cap: Option<usize>| {
+        let mut r = Resolver::new(&g, pd(cap)).unwrap();
+        (0..5)
+            .map(|_| {
+                let pr = r.step().unwrap().1.projective.expect("a projective step");
+                (pr.cg_iterations, pr.iterations)
+            })
+            .collect::<Vec<_>>()
+    };
+    let capped = cg(Some(1));
+    assert!(capped.iter().all(|&(c, it)| c <= it), "{capped:?}");
+    assert!(capped.iter().any(|&(c, _)| c > 0), "{capped:?}");
+    let uncapped = cg(None);
+    assert!(uncapped.iter().any(|&(c, it)| c > it), "{uncapped:?}");
 }

@@ -75,6 +75,53 @@ pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimP
     p
 }
 
+/// The Cha & Ko loop's settings from the environment: [`integrator_params`] for its simulator,
+/// and `UNTANGLE_PD_CG_CAP` as the loop's own CG cap per projective global step
+/// (`ResolveParams::projective_cg_cap`).
+pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
+    p.sim = integrator_params(p.sim.clone());
+    if let Some(k) = std::env::var("UNTANGLE_PD_CG_CAP")
+        .ok()
+        .and_then(|s| s.parse::<usize>().ok())
+    {
+        p.projective_cg_cap = Some(k);
+    }
+}
+
+/// What [`run_tracking`] saw of the simulator besides the loop's summary.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Tracked {
+    /// Largest relative edge stretch (`|e| / |e_rest| - 1`) at the end of any step.
+    pub max_stretch: f64,
+    /// The same at the end of the last step.
+    pub final_stretch: f64,
+    /// Elastic (stretch + bend) and kinetic energy at the start of the last step, J.
+    pub final_elastic: f64,
+    /// See `final_elastic`.
+    pub final_kinetic: f64,
+}
+
+/// `Resolver::run` written out (same steps and stopping), also keeping the stretch and the
+/// energies of the simulator's step reports.
+pub fn run_tracking(
+    r: &mut untangle::methods::cha_ko::Resolver,
+    mut on_step: impl FnMut(&untangle::methods::cha_ko::LoopStep),
+) -> (untangle::methods::cha_ko::ResolveSummary, Tracked) {
+    let mut t = Tracked::default();
+    let outcome = loop {
+        if let Some(o) = r.stop_reason() {
+            break o;
+        }
+        let (rec, sr) = r.step().expect("loop step");
+        t.max_stretch = t.max_stretch.max(sr.max_stretch);
+        t.final_stretch = sr.max_stretch;
+        t.final_elastic = sr.energy.stretch + sr.energy.bend;
+        t.final_kinetic = sr.energy.kinetic;
+        on_step(&rec);
+    };
+    (r.summary(outcome), t)
+}
+
 /// The trial step of the Cha & Ko loop from the environment (`methods::cha_ko::trial`):
 /// `CHAKO_TRIAL` (retries, 0 = off), `CHAKO_TRIAL_TRIGGER` (0: any newly red vertex, 1: the
 /// count went up), `CHAKO_TRIAL_SCOPE` (0: crossings at the newly red vertices' edges and

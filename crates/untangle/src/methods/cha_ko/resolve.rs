@@ -20,7 +20,7 @@ use crate::analysis::{analyze_with, Analysis, AnalysisMesh, Coloring};
 use crate::error::Result;
 use crate::geom::Vec3;
 use crate::mesh::Garment;
-use crate::sim::{SimParams, Simulator, StepReport, UniformThickness, ZoneMotion};
+use crate::sim::{Integrator, SimParams, Simulator, StepReport, UniformThickness, ZoneMotion};
 use std::time::Instant;
 
 /// Settings of the loop.
@@ -49,6 +49,12 @@ pub struct ResolveParams {
     /// any red region. With `bli_regions_red = false` a BLI-only tanglement is reported as a
     /// stall ("nothing to operate on") with its location and the loop stops as stuck.
     pub analysis: crate::analysis::Options,
+    /// Cap of the CG iterations of one projective global step under contact terms, for the
+    /// loop's simulator only (ours): when `sim.integrator` is [`Integrator::Projective`] it
+    /// replaces `sim.projective_cg_iterations` (see [`SimParams::projective_cg_iterations`]);
+    /// `None` keeps that value, and Baraff & Witkin ignores it. Plain simulation keeps its
+    /// own full CG (cap 10).
+    pub projective_cg_cap: Option<usize>,
 }
 
 impl Default for ResolveParams {
@@ -75,6 +81,7 @@ impl Default for ResolveParams {
             analysis: crate::analysis::Options {
                 bli_regions_red: true,
             },
+            projective_cg_cap: None,
         }
     }
 }
@@ -187,6 +194,9 @@ impl Resolver {
     pub fn new(garment: &Garment, params: ResolveParams) -> Result<Resolver> {
         let mut sp = params.sim.clone();
         sp.dt = params.cha_ko.dt;
+        if let (Integrator::Projective, Some(k)) = (sp.integrator, params.projective_cg_cap) {
+            sp.projective_cg_iterations = k;
+        }
         let sim = Simulator::new(garment, sp)?;
         let chako = ChaKo::new(garment, params.cha_ko.clone())?;
         let (am, _) = AnalysisMesh::single(&garment.mesh)?;
