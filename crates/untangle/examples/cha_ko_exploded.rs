@@ -101,7 +101,7 @@ fn main() {
         let mut reds: Vec<usize> = Vec::new();
         // Trial step: steps with a retry, retries, steps accepted with a newly red vertex.
         let mut trial = [0usize; 3];
-        let (s, tracked) = common::run_tracking(&mut r, |st| {
+        let (s, tracked) = common::run_tracking(&mut r, |st, _| {
             if trace {
                 eprintln!(
                         "seed {seed} step {} pairs {} red {} ops {} pulls {}+{} shrinks {}+{} | trial retries {} newly red {} -> {} blocked {} all_new {} stop {} released {} | zones {} ms sim {:.0}",

@@ -89,7 +89,7 @@ fn main() {
         for &v in &pins {
             r.simulator_mut().set_pinned(v, true).expect("pin");
         }
-        let (s, tracked) = common::run_tracking(&mut r, |_| {});
+        let (s, tracked) = common::run_tracking(&mut r, |_, _| {});
         let wall = t.elapsed().as_secs_f64();
         println!(
             "| {name} | {} | {} | {} | {bli} | {:?} | {} | {} | {} | {:.1} / {:.2} / {:.1} | {:.1} | {:.3} / {:.3} | {:.3e} / {:.3e} |",

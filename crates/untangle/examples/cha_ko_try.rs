@@ -7,7 +7,8 @@
 //! or `exploded` (SIZE = cells per side); env `MAX_STEPS`, `STUCK`, `NO_UV=1` (m-CCH alone),
 //! `CHAKO_ZONE_SOFT`, `CHAKO_ZONE_SPIN` (the simulator's `ZoneMotion`), `CHAKO_AVOID_LOOP_PULL`,
 //! `CHAKO_REVOKE`, the trial step's `CHAKO_TRIAL*` (see `common::trial_params`),
-//! `UNTANGLE_INTEGRATOR` and `UNTANGLE_PD_CG_CAP` (see `common::loop_params`).
+//! `UNTANGLE_INTEGRATOR` and `UNTANGLE_PD_CG_CAP` (see `common::loop_params`); `AFTER=N` runs N
+//! plain simulator steps after the loop (stretch and energies every 10 steps).
 mod common;
 
 use untangle::analysis::AnalysisMesh;
@@ -65,21 +66,38 @@ fn main() {
         p.cha_ko.hold_steps = h.parse().unwrap();
     }
     let mut r = Resolver::new(&g, p).unwrap();
-    let (s, tracked) = common::run_tracking(&mut r, |st| {
+    let (s, tracked) = common::run_tracking(&mut r, |st, sr| {
         println!(
-                "{} pairs {} tang {} red {} rtri {} | pull +{} ~{} shrink +{} ~{} rev {} blk {}/{} act {} sat {} fb {} st {} | trial {} new {} inc {} blk {} | aq {} z {} | {:.1} {:.1} {:.1} ms",
+                "{} pairs {} tang {} red {} rtri {} | pull +{} ~{} shrink +{} ~{} rev {} blk {}/{} act {} sat {} fb {} st {} | trial {} new {} inc {} blk {} | aq {} z {} | {:.1} {:.1} {:.1} ms | stretch {:.3}",
                 st.step, st.intersecting_pairs, st.tanglements, st.red_vertices, st.red_triangles,
                 st.uv.pulls_started, st.uv.pulls_continued, st.uv.shrinks_started, st.uv.shrinks_continued,
                 st.uv.revoked_levels, st.uv.blocked_fan, st.uv.blocked_subject, st.uv.active_ops, st.uv.saturated_ops,
                 st.uv.fallbacks.len(), st.uv.stalls.len(),
                 st.trial.retries, st.trial.newly_red_first, st.trial.red_increase_accepted, st.trial.blocked_pairs,
-                st.administrative_quit, st.impact_zones, st.ms_analysis, st.ms_uv, st.ms_sim
+                st.administrative_quit, st.impact_zones, st.ms_analysis, st.ms_uv, st.ms_sim, sr.max_stretch
             )
     });
     println!(
         "max stretch (run / final) {:.3} / {:.3}, final elastic / kinetic energy {:.3e} / {:.3e} J",
         tracked.max_stretch, tracked.final_stretch, tracked.final_elastic, tracked.final_kinetic
     );
+    // AFTER=N: N more plain simulator steps (collision thickness `eps`, the loop's simulator and
+    // settings) after the loop, printing the stretch and energies every 10 steps.
+    let after: usize = std::env::var("AFTER").map_or(0, |s| s.parse().unwrap());
+    let eps = r.chako().params().eps;
+    for k in 1..=after {
+        let sr = r
+            .simulator_mut()
+            .step(&untangle::sim::UniformThickness(eps));
+        if k % 10 == 0 || k == after {
+            println!(
+                "after {k}: max stretch {:.3}, elastic / kinetic energy {:.3e} / {:.3e} J",
+                sr.max_stretch,
+                sr.energy.stretch + sr.energy.bend,
+                sr.energy.kinetic
+            );
+        }
+    }
     let mut s2 = s.clone();
     s2.stalls.truncate(5);
     println!("{}", serde_json::to_string(&s2).unwrap());

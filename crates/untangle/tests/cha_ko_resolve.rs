@@ -26,9 +26,14 @@ fn scene_garment(scene: &untangle::scenes::Scene) -> Garment {
 
 /// Runs to the end and checks the outcome independently.
 fn resolves(g: &Garment, max_steps: usize) -> untangle::methods::cha_ko::ResolveSummary {
+    resolves_with(g, params(max_steps))
+}
+
+/// [`resolves`] with the given settings.
+fn resolves_with(g: &Garment, p: ResolveParams) -> untangle::methods::cha_ko::ResolveSummary {
     let (am, pos0) = AnalysisMesh::single(&g.mesh).unwrap();
     assert!(!analyze(&am, &pos0).unwrap().is_clean(), "starts tangled");
-    let mut r = Resolver::new(g, params(max_steps)).unwrap();
+    let mut r = Resolver::new(g, p).unwrap();
     let s = r.run(|_| {}).unwrap();
     assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");
     let a = analyze(&am, r.simulator().positions()).unwrap();
@@ -322,4 +327,19 @@ fn the_projective_cg_cap_reaches_the_loops_simulator_only() {
     assert!(capped.iter().any(|&(c, _)| c > 0), "{capped:?}");
     let uncapped = cg(None);
     assert!(uncapped.iter().any(|&(c, it)| c > it), "{uncapped:?}");
+}
+
+#[test]
+fn the_projective_loop_resolves_with_its_default_cg_cap() {
+    // The loop's own CG cap (`ResolveParams::projective_cg_cap`, default 1) under projective
+    // dynamics: CLOSED and BIBI still end intersection-free with the uv restored.
+    let p = ResolveParams::default();
+    assert_eq!(p.projective_cg_cap, Some(1));
+    for name in ["closed", "bibi"] {
+        let scene = untangle::scenes::by_name(name, None, 1).unwrap();
+        let mut p = params(400);
+        p.sim.integrator = untangle::sim::Integrator::Projective;
+        let s = resolves_with(&scene_garment(&scene), p);
+        assert!(s.finesse.rows[0].count > 0, "{name}");
+    }
 }

@@ -105,7 +105,7 @@ pub struct Tracked {
 /// energies of the simulator's step reports.
 pub fn run_tracking(
     r: &mut untangle::methods::cha_ko::Resolver,
-    mut on_step: impl FnMut(&untangle::methods::cha_ko::LoopStep),
+    mut on_step: impl FnMut(&untangle::methods::cha_ko::LoopStep, &untangle::sim::StepReport),
 ) -> (untangle::methods::cha_ko::ResolveSummary, Tracked) {
     let mut t = Tracked::default();
     let outcome = loop {
@@ -117,7 +117,7 @@ pub fn run_tracking(
         t.final_stretch = sr.max_stretch;
         t.final_elastic = sr.energy.stretch + sr.energy.bend;
         t.final_kinetic = sr.energy.kinetic;
-        on_step(&rec);
+        on_step(&rec, &sr);
     };
     (r.summary(outcome), t)
 }

@@ -121,7 +121,10 @@ pub struct SimParams {
     /// factor-preconditioned steepest-descent step (one factor solve: CG skips the solve that
     /// would only test convergence at the cap), which still never increases the step energy;
     /// in the Cha & Ko loop that is 10 instead of ~35 solves per step (BENCHMARKS.md, branch
-    /// loop9). Off by default: not yet checked beyond the loop's benchmarks.
+    /// loop9). Plain simulation keeps 10 (cap 1 let the 20k-vertex shirt's energy grow
+    /// ~1000x); the Cha & Ko loop sets its own
+    /// ([`crate::methods::cha_ko::ResolveParams::projective_cg_cap`], 1 by default;
+    /// BENCHMARKS.md, branch loop10).
     pub projective_cg_iterations: usize,
 }
 
