@@ -477,9 +477,8 @@ pub fn repair(
             let mut c = vec![false; target.len()];
             for (k, l) in layers.iter().enumerate() {
                 let base = starts[k] as usize;
-                let from = params.coarse_edge * l.separation.max(params.min_step);
                 for t in &l.mesh.triangles {
-                    if longest_edge_squared(t.map(|v| pos[base + v as usize])) > from * from {
+                    if is_coarse(t.map(|v| pos[base + v as usize]), l.separation, params) {
                         for &v in t {
                             c[base + v as usize] = true;
                         }
@@ -886,11 +885,15 @@ fn snap_goals(
     // Whether triangle `t` (of the stack) is coarse (see `RepairParams::coarse_edge`).
     let coarse = |t: usize| -> bool {
         let o = stack.object_of[t] as usize;
-        if params.coarse_edge <= 0.0 || o >= ng {
+        if o >= ng {
+            // The body: coarse only when every triangle is.
             return params.coarse_edge <= 0.0;
         }
-        let from = params.coarse_edge * layers[o].separation;
-        longest_edge_squared(stack.tris[t].map(|v| pos[v as usize])) > from * from
+        is_coarse(
+            stack.tris[t].map(|v| pos[v as usize]),
+            layers[o].separation,
+            params,
+        )
     };
     // Whether a triangle of object `o` lies within `radius` of `p` (the cheap test first: most
     // contacts are at the rule).
@@ -1598,8 +1601,21 @@ fn separate_pairs(
     (rep, statics)
 }
 
-/// The squared length of the longest edge of the triangle with corners `p` (what makes a
-/// triangle *coarse* for [`RepairParams::coarse_edge`]).
+/// Whether the triangle with corners `p`, of a layer with thickness rule `separation` to the
+/// layer below, is *coarse* (ours, see [`RepairParams::coarse_edge`]): its longest edge is over
+/// `coarse_edge` times the rule (the rule at least `min_step`, as for the pushes; every
+/// triangle when `coarse_edge` <= 0). The one rule
+/// of `settle`'s further rounds (`settle_rounds_coarse`) and of `snap`'s goals.
+fn is_coarse(p: [Vec3; 3], separation: f64, params: &RepairParams) -> bool {
+    if params.coarse_edge <= 0.0 {
+        return true;
+    }
+    let from = params.coarse_edge * separation.max(params.min_step);
+    longest_edge_squared(p) > from * from
+}
+
+/// The squared length of the longest edge of the triangle with corners `p` (see
+/// [`is_coarse`]).
 fn longest_edge_squared([a, b, c]: [Vec3; 3]) -> f64 {
     (a - b)
         .norm_squared()
