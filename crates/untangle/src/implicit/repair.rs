@@ -232,10 +232,12 @@ pub struct PairRepair {
     pub self_ms: f64,
     /// Wall time of `settle` within [`repair`], ms (0 when it did not run).
     pub settle_ms: f64,
-    /// Over-separated contact vertices given a goal at the thickness rule after `settle`
-    /// (see [`RepairParams::snap_tolerance`]).
+    /// Contact vertices given a goal at the thickness rule after `settle` (see
+    /// [`RepairParams::snap_tolerance`]; with [`RepairParams::snap_follow`] summed over its
+    /// passes, corners of pulled triangles included).
     pub snap_goals: usize,
-    /// Of those, the vertices that moved towards it (part of the way or all of it).
+    /// Of those, the vertices that moved towards it (part of the way or all of it; summed
+    /// over the passes).
     pub snapped: usize,
     /// Wall time of that step, ms.
     pub snap_ms: f64,
