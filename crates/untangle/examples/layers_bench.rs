@@ -15,8 +15,8 @@
 //! at the contact vertices;
 //! `LAYERS_BENCH_COMPARE=1` also runs with full grids and prints how far the outputs differ;
 //! `LAYERS_BENCH_SETTLE=n` sets the repair's settle rounds (0: off);
-//! `LAYERS_BENCH_SNAP=x[,rounds]` sets `RepairParams::snap_tolerance` (e.g. 0.1; negative: off)
-//! and optionally `snap_rounds`;
+//! `LAYERS_BENCH_SNAP=x[,rounds[,follow]]` sets `RepairParams::snap_tolerance` (default 0.1;
+//! negative: off) and optionally `snap_rounds` and `snap_follow` (1 / 0);
 //! `LAYERS_BENCH_SETTLE_COARSE=n[,edge]` sets `RepairParams::settle_rounds_coarse` and
 //! optionally `coarse_edge` (in thickness rules);
 //! `LAYERS_BENCH_STREAK=n[,max]` sets the pair phase's acceleration of persistent crossings
@@ -150,6 +150,9 @@ fn main() {
                 }
                 if let Some(&r) = v.get(1) {
                     params.repair.snap_rounds = r as usize;
+                }
+                if let Some(&f) = v.get(2) {
+                    params.repair.snap_follow = f != 0.0;
                 }
             }
             if let Ok(x) = std::env::var("LAYERS_BENCH_SETTLE_COARSE") {
