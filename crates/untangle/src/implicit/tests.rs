@@ -878,28 +878,56 @@ fn three_tilted_planes_merged_keep_the_rule_between_neighbours() {
 fn arcsim_table3_separation_within_two_percent_at_table2_size() {
     // Issue 5's Table 3 analogue at the Table-2 size (5 layers, subdivision 4, 170k vertices):
     // where the operators put two neighbouring layers in contact, the two-sided face-to-face
-    // gap is the thickness rule within 2 % — over the contacts the repair of residual crossings
-    // left alone — and the output has no intersection between layers or with the body. With
-    // eq. 13 as written the T-shirt/dress and jacket/T-shirt pairs are 5–7 % off (BENCHMARKS.md).
+    // gap is the thickness rule within 2 % — over all contacts and over the contacts the repair
+    // of residual crossings left alone — and the output has no intersection between layers or
+    // with the body. With eq. 13 as written the T-shirt/dress and jacket/T-shirt pairs are 5–7 %
+    // off (BENCHMARKS.md).
+    table3_separation_within_two_percent(4);
+}
+
+#[test]
+fn arcsim_table3_separation_within_two_percent_at_coarser_sizes() {
+    // The same at subdivisions 2 and 3 (about 10.6k and 42k vertices: the two smaller sizes of
+    // the paper's Table 2), where coarse outer layers over finer inner ones were 11 % off before
+    // the following snap of the repair (session 18, BENCHMARKS.md "Branch sep4").
+    for subdiv in [2, 3] {
+        table3_separation_within_two_percent(subdiv);
+    }
+}
+
+/// Untangles the five arcsim layers at `subdiv` and checks the Table 3 analogue (see above).
+fn table3_separation_within_two_percent(subdiv: usize) {
     let Some(shared) = shared_data() else { return };
     let (body, garments) =
-        crate::scenes::outfit::arcsim_outfit(&shared, crate::scenes::outfit::GARMENTS, 4).unwrap();
+        crate::scenes::outfit::arcsim_outfit(&shared, crate::scenes::outfit::GARMENTS, subdiv)
+            .unwrap();
     let inputs = GarmentInput::all_alike(&garments, 0.01, 1.0);
     let out = untangle_layers(Some(&body), &inputs, &Params::default(), &|_| {}).unwrap();
     let v = verify_outfit(&body, &garments, &out.positions);
-    assert!(v.is_clean(), "{v:?}");
+    assert!(v.is_clean(), "subdiv {subdiv}: {v:?}");
     let seps = super::layers::measure_separation(Some(&body), &inputs, &out, 0.0);
     for s in seps.iter().flatten() {
+        let two = s.two_sided.as_ref().unwrap();
         let u = s.unrepaired.as_ref().unwrap();
         eprintln!(
-            "layer {} over {}: unrepaired two-sided mean {:.5} over {} ({:.2} %)",
+            "subdiv {subdiv}: layer {} over {}: two-sided mean {:.5} over {} ({:.2} %), unrepaired {:.5} over {} ({:.2} %)",
             s.layer,
             s.against,
+            two.mean,
+            two.count,
+            100.0 * two.relative_error,
             u.mean,
             u.count,
             100.0 * u.relative_error
         );
-        assert!(u.count > 1000, "{u:?}");
-        assert!(u.relative_error < 0.02, "{u:?}");
+        let least = if subdiv >= 4 { 1000 } else { 100 };
+        assert!(u.count > least, "subdiv {subdiv}: {u:?}");
+        assert!(two.relative_error < 0.02, "subdiv {subdiv}: {two:?}");
+        // Over the contacts the repair left alone: from subdivision 3 on. At subdivision 2 the
+        // dress over the pants reads 2.2 % there (1.4 % over all contacts), because the subset
+        // leaves out the contacts the repair's snap put at the rule.
+        if subdiv >= 3 {
+            assert!(u.relative_error < 0.02, "subdiv {subdiv}: {u:?}");
+        }
     }
 }
