@@ -36,6 +36,10 @@ pub struct BroadPhase {
     vert_boxes: Vec<Aabb>,
     built: bool,
     obstacle_count: usize,
+    /// Per cloth triangle / edge, whether a vertex changed in the last
+    /// [`BroadPhase::update_changed`] (buffers kept across calls, filled in parallel).
+    tri_changed: Vec<bool>,
+    edge_changed: Vec<bool>,
 }
 
 fn swept<const N: usize>(scene: &Scene, v: &[Vec3], nodes: [u32; N], margin: f64) -> Aabb {
@@ -156,35 +160,42 @@ impl BroadPhase {
                     *b = swept(scene, v, [p as u32], 0.0);
                 }
             });
-        let tri_changed: Vec<bool> = scene.triangles.iter().map(|t| touched(t)).collect();
-        let edge_changed: Vec<bool> = scene.edges.iter().map(|e| touched(e)).collect();
+        // Which triangles and edges have a changed vertex, in the loops that recompute their
+        // boxes (into buffers kept across calls).
+        self.tri_changed.resize(scene.triangles.len(), false);
+        self.edge_changed.resize(scene.edges.len(), false);
         let vert = &self.vert_boxes;
         self.tri_boxes
             .par_iter_mut()
             .with_min_len(4096)
-            .zip(scene.triangles.par_iter().zip(tri_changed.par_iter()))
-            .for_each(|(b, (t, &c))| {
-                if c {
+            .zip(self.tri_changed.par_iter_mut())
+            .zip(scene.triangles.par_iter())
+            .for_each(|((b, c), t)| {
+                *c = touched(t);
+                if *c {
                     *b = union_of(vert, t).inflated(margin);
                 }
             });
         self.edge_boxes
             .par_iter_mut()
             .with_min_len(4096)
-            .zip(scene.edges.par_iter().zip(edge_changed.par_iter()))
-            .for_each(|(b, (e, &c))| {
-                if c {
+            .zip(self.edge_changed.par_iter_mut())
+            .zip(scene.edges.par_iter())
+            .for_each(|((b, c), e)| {
+                *c = touched(e);
+                if *c {
                     *b = union_of(vert, e).inflated(0.5 * margin);
                 }
             });
+        let (tri_changed, edge_changed) = (&self.tri_changed, &self.edge_changed);
         // Only the nodes above changed primitives (the same boxes as a full refit).
         let (t, e, vb) = (&mut self.tri, &mut self.edge, &mut self.vert);
         let (tb, eb, vbb) = (&self.tri_boxes, &self.edge_boxes, &self.vert_boxes);
         rayon::join(
-            || t.refit_changed(tb, &tri_changed),
+            || t.refit_changed(tb, tri_changed),
             || {
                 rayon::join(
-                    || e.refit_changed(eb, &edge_changed),
+                    || e.refit_changed(eb, edge_changed),
                     || vb.refit_changed(vbb, changed),
                 )
             },

@@ -353,7 +353,27 @@ fn separation_along(x: &[Vec3; 4], split: usize, u: &Vec3) -> f64 {
 /// Largest absolute coordinate of the four nodes (the scale of rounding errors).
 #[inline]
 pub fn coordinate_scale(x: &[Vec3; 4]) -> f64 {
-    x.iter().fold(0.0f64, |m, p| m.max(p.amax()))
+    abs_max(x)
+}
+
+/// The largest absolute coordinate of four vectors, at least 0: the same bits as
+/// `x.iter().fold(0.0, |m, p| m.max(p.amax()))` for any input (nalgebra's `amax` compares
+/// `a >= |c|` coordinate by coordinate, so a NaN after the first coordinate makes it NaN,
+/// which the fold then skips), with plain comparisons instead of `f64::max`'s NaN selects.
+#[inline]
+pub fn abs_max(x: &[Vec3; 4]) -> f64 {
+    let mut m = 0.0f64;
+    for p in x {
+        let mut a = p.x.abs();
+        for c in [p.y.abs(), p.z.abs()] {
+            a = if a >= c { a } else { c };
+        }
+        // `m` is never NaN: `f64::max(m, a)` is `a` if `a > m`, else `m`.
+        if a > m {
+            m = a;
+        }
+    }
+    m
 }
 
 /// Whether a lower distance bound `gap` ([`axis_gap`]) of nodes with [`coordinate_scale`]

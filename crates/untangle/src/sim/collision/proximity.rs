@@ -76,15 +76,40 @@ fn dormant_given_gap(gap: f64, scale: f64, vel: &[Vec3; 4], vt: bool, eps: f64, 
 /// can shrink over the step.
 #[inline]
 pub fn relative_speed(vel: &[Vec3; 4], vt: bool) -> f64 {
-    let split = if vt { 1 } else { 2 };
-    let mut rel = 0.0f64;
-    for i in 0..split {
-        for j in split..4 {
-            rel = rel.max((vel[i] - vel[j]).norm_squared());
-        }
-    }
-    let vmax = vel.iter().fold(0.0f64, |m, w| m.max(w.amax()));
+    let d = |i: usize, j: usize| (vel[i] - vel[j]).norm_squared();
+    // Unrolled; `max0` is `f64::max` for a non-NaN first argument (from 0, a NaN is skipped
+    // either way), without the NaN selects of `f64::max`.
+    let rel = if vt {
+        max0(max0(max0(0.0, d(0, 1)), d(0, 2)), d(0, 3))
+    } else {
+        max0(max0(max0(max0(0.0, d(0, 2)), d(0, 3)), d(1, 2)), d(1, 3))
+    };
+    let vmax = super::abs_max(vel);
     rel.sqrt() * (1.0 + 1e-9) + 1e-9 * vmax
+}
+
+/// The fastest node's speed of each primitive of a pair (nodes `[p, a, b, c]` when `vt`, else
+/// two edges), at least 0: `max_k |v_k|` over each primitive's nodes, as a fold from 0 with
+/// `f64::max` gives it (ours).
+#[inline]
+fn primitive_speeds(vel: &[Vec3; 4], vt: bool) -> (f64, f64) {
+    let sp = vel.map(|w| w.norm());
+    if vt {
+        (max0(0.0, sp[0]), max0(max0(max0(0.0, sp[1]), sp[2]), sp[3]))
+    } else {
+        (max0(max0(0.0, sp[0]), sp[1]), max0(max0(0.0, sp[2]), sp[3]))
+    }
+}
+
+/// `f64::max(m, c)` for `m` not NaN (a NaN `c` leaves `m`, as `f64::max` does), in one
+/// instruction.
+#[inline(always)]
+fn max0(m: f64, c: f64) -> f64 {
+    if c > m {
+        c
+    } else {
+        m
+    }
 }
 
 /// The distance beyond which a pair with thickness `eps` and [`relative_speed`] `rel` is
@@ -172,9 +197,8 @@ pub fn screen_pair(
     // Cheap rejection: the reach below is at most the fastest node of each primitive's speed
     // times h, and the distance at least the axis gap (a pair rejected here would be found
     // neither close nor active by its closest points either).
-    let split = if vt { 1 } else { 2 };
-    let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
-    let reach_max = (speed(0..split) + speed(split..4)) * h;
+    let (speed_a, speed_b) = primitive_speeds(&vel, vt);
+    let reach_max = (speed_a + speed_b) * h;
     let far = (2.0 * eps).max(eps + 2.0 * reach_max);
     let dormant_at = if lazy {
         dormant_distance(eps, rel, h)
@@ -468,6 +492,55 @@ mod tests {
 
     fn v3(a: [f64; 3]) -> Vec3 {
         Vec3::new(a[0], a[1], a[2])
+    }
+
+    /// A coordinate for the bit-identity proptests: ordinary values, and now and then a
+    /// signed zero, an infinity or a NaN.
+    fn coordinate() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            8 => -3.0f64..3.0,
+            1 => prop::sample::select(vec![
+                0.0,
+                -0.0,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NAN,
+                1e300,
+                -1e-300,
+            ]),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        /// Oracle for the unrolled [`relative_speed`]: the previous loop with `f64::max`
+        /// (written out here) gives the same bits, also with signed zeros, infinities and NaNs.
+        #[test]
+        fn relative_speed_equals_the_max_fold(
+            v in prop::array::uniform4(prop::array::uniform3(coordinate())),
+            vt in any::<bool>(),
+        ) {
+            let vel = v.map(v3);
+            let split = if vt { 1 } else { 2 };
+            let mut rel = 0.0f64;
+            for i in 0..split {
+                for j in split..4 {
+                    rel = rel.max((vel[i] - vel[j]).norm_squared());
+                }
+            }
+            let vmax = vel.iter().fold(0.0f64, |m, w| m.max(w.amax()));
+            let want = rel.sqrt() * (1.0 + 1e-9) + 1e-9 * vmax;
+            let got = relative_speed(&vel, vt);
+            prop_assert!(got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                "{got} vs {want}");
+            let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
+            let (a, b) = primitive_speeds(&vel, vt);
+            prop_assert_eq!(a.to_bits(), speed(0..split).to_bits());
+            prop_assert_eq!(b.to_bits(), speed(split..4).to_bits());
+            let scale = crate::sim::collision::abs_max(&vel);
+            let fold = vel.iter().fold(0.0f64, |m, p| m.max(p.amax()));
+            prop_assert_eq!(scale.to_bits(), fold.to_bits());
+        }
     }
 
     proptest! {
