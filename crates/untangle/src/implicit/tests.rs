@@ -887,7 +887,7 @@ fn arcsim_table3_separation_within_two_percent_at_table2_size() {
 
 #[test]
 fn arcsim_table3_separation_within_two_percent_at_coarser_sizes() {
-    // The same at subdivisions 2 and 3 (about 10.6k and 42k vertices: the two smaller sizes of
+    // The same at subdivisions 2 and 3 (10,918 and 42,834 vertices: close to the two smaller sizes of
     // the paper's Table 2), where coarse outer layers over finer inner ones were 11 % off before
     // the following snap of the repair (session 18, BENCHMARKS.md "Branch sep4").
     for subdiv in [2, 3] {
