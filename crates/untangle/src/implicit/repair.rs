@@ -526,6 +526,8 @@ pub fn repair(
                 vec![None]
             };
             let start = pos.clone();
+            // The positions the hierarchies were last refitted to (none yet).
+            let mut refitted: Option<Vec<Vec3>> = None;
             for only in passes {
                 // The vertices the passes before this one moved (the layers below).
                 let snapped: Vec<bool> = if only.is_some() {
@@ -533,13 +535,23 @@ pub fn repair(
                 } else {
                     Vec::new()
                 };
-                // `settle` moved some triangles: bring the objects' hierarchies to `pos` first.
+                // `settle` moved some triangles: bring the objects' hierarchies to `pos` first,
+                // those of the garments that moved since the last refit (a pass moves one).
                 for (o, b) in bvhs.iter_mut().enumerate().take(layers.len()) {
+                    let vs =
+                        starts[o] as usize..starts[o] as usize + layers[o].mesh.positions.len();
+                    if refitted
+                        .as_ref()
+                        .is_some_and(|r| r[vs.clone()] == pos[vs.clone()])
+                    {
+                        continue;
+                    }
                     let r = stack.tri_start[o] as usize..stack.tri_start[o + 1] as usize;
                     let boxes: Vec<Aabb> =
                         r.into_par_iter().map(|t| stack.box_of(t, &pos)).collect();
                     b.refit(&boxes);
                 }
+                refitted = Some(pos.clone());
                 let goal = snap_goals(
                     layers, &pos, &starts, &target, params, &stack, &bvhs, only, &snapped,
                 );
