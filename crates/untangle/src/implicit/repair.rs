@@ -2026,6 +2026,64 @@ mod tests {
             .fold(f64::INFINITY, f64::min)
     }
 
+    /// Runs the repair on the concentric layers `gs` (innermost first, over the sphere fields of
+    /// `radii`, every vertex in contact with its neighbouring layers) with `off` and with `on`.
+    /// Asserts that the intersection analysis finds both outputs clean and that `on` adds no
+    /// self-intersection; returns both reports and, for each run, the mean `|distance - rule|`
+    /// (brute force) from the vertices either run moved to each neighbouring mesh.
+    fn snap_off_on(
+        gs: &[Mesh],
+        radii: &[f64],
+        off: &RepairParams,
+        on: &RepairParams,
+    ) -> Result<(PairRepair, PairRepair, f64, f64), TestCaseError> {
+        let n = gs.len();
+        let fields = SphereField::concentric(radii);
+        let topos: Vec<Topology> = gs.iter().map(|m| Topology::new(m).unwrap()).collect();
+        let contacts: Vec<Vec<u8>> = (0..n)
+            .map(|k| {
+                let above = if k + 1 < n { CONTACT_ABOVE } else { 0 };
+                let below = if k > 0 { CONTACT_BELOW } else { 0 };
+                vec![above | below; gs[k].positions.len()]
+            })
+            .collect();
+        let mut layers = sphere_layers(gs, &topos, &fields, &vec![1.0; n]);
+        for (l, c) in layers.iter_mut().zip(&contacts) {
+            l.contacts = c;
+        }
+        let start: Vec<Vec<Vec3>> = gs.iter().map(|m| m.positions.clone()).collect();
+        let (mut a, mut b) = (start.clone(), start.clone());
+        let (_, ra) = repair(None, &layers, &mut a, off);
+        let (_, rb) = repair(None, &layers, &mut b, on);
+        let refs: Vec<&Mesh> = gs.iter().collect();
+        let (va, vb) = (
+            verify(None, &refs, &a).unwrap(),
+            verify(None, &refs, &b).unwrap(),
+        );
+        prop_assert!(va.is_clean() && vb.is_clean(), "{:?} {:?}", va, vb);
+        prop_assert!(vb.self_intersections <= va.self_intersections);
+        let error = |pos: &[Vec<Vec3>]| {
+            let (mut sum, mut count) = (0.0, 0usize);
+            for k in 0..n {
+                for v in 0..start[k].len() {
+                    if a[k][v] == start[k][v] && b[k][v] == start[k][v] {
+                        continue;
+                    }
+                    for j in [k.wrapping_sub(1), k + 1] {
+                        if j < n {
+                            let d = distance_brute(&pos[k][v], &gs[j].triangles, &pos[j]);
+                            sum += (d - 0.01).abs();
+                            count += 1;
+                        }
+                    }
+                }
+            }
+            sum / count.max(1) as f64
+        };
+        let (ea, eb) = (error(&a), error(&b));
+        Ok((ra, rb, ea, eb))
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(4))]
         /// Two spheres 1 cm apart (the rule), every vertex in contact with the other layer,
@@ -2044,17 +2102,6 @@ mod tests {
                 sphere_mesh("in", &Vec3::zeros(), 0.5, 24),
                 dented("out", 0.51, &axis, cap, depth),
             ];
-            let fields = SphereField::concentric(&[0.5, 0.51]);
-            let topos: Vec<Topology> = gs.iter().map(|m| Topology::new(m).unwrap()).collect();
-            let contacts = [
-                vec![CONTACT_ABOVE; gs[0].positions.len()],
-                vec![CONTACT_BELOW; gs[1].positions.len()],
-            ];
-            let mut layers = sphere_layers(&gs, &topos, &fields, &[1.0, 1.0]);
-            for (l, c) in layers.iter_mut().zip(&contacts) {
-                l.contacts = c;
-            }
-            let start: Vec<Vec<Vec3>> = gs.iter().map(|m| m.positions.clone()).collect();
             let off = RepairParams {
                 snap_tolerance: -1.0,
                 ..RepairParams::default()
@@ -2064,30 +2111,9 @@ mod tests {
                 snap_follow: false,
                 ..RepairParams::default()
             };
-            let (mut a, mut b) = (start.clone(), start.clone());
-            let (_, ra) = repair(None, &layers, &mut a, &off);
-            let (_, rb) = repair(None, &layers, &mut b, &on);
-            let refs: Vec<&Mesh> = gs.iter().collect();
-            let (va, vb) = (verify(None, &refs, &a).unwrap(), verify(None, &refs, &b).unwrap());
-            prop_assert!(va.is_clean() && vb.is_clean(), "{:?} {:?}", va, vb);
-            prop_assert!(vb.self_intersections <= va.self_intersections);
+            let (ra, rb, ea, eb) = snap_off_on(&gs, &[0.5, 0.51], &off, &on)?;
             prop_assert_eq!(ra.snap_goals, 0);
             prop_assert!(rb.snap_goals > 0, "the pushes overdo somewhere: {:?}", rb);
-            // Mean |distance - rule| over the vertices either run moved.
-            let error = |pos: &[Vec<Vec3>]| {
-                let (mut sum, mut n) = (0.0, 0usize);
-                for k in 0..2 {
-                    let other = &gs[1 - k].triangles;
-                    for v in 0..start[k].len() {
-                        if a[k][v] != start[k][v] || b[k][v] != start[k][v] {
-                            sum += (distance_brute(&pos[k][v], other, &pos[1 - k]) - 0.01).abs();
-                            n += 1;
-                        }
-                    }
-                }
-                sum / n.max(1) as f64
-            };
-            let (ea, eb) = (error(&a), error(&b));
             prop_assert!(eb < ea, "with snap {} vs without {}", eb, ea);
         }
     }
@@ -2114,18 +2140,6 @@ mod tests {
                 sphere_mesh("mid", &Vec3::zeros(), 0.51, 24),
                 dented_res("out", 0.52, 12, &axis, cap, depth),
             ];
-            let fields = SphereField::concentric(&[0.5, 0.51, 0.52]);
-            let topos: Vec<Topology> = gs.iter().map(|m| Topology::new(m).unwrap()).collect();
-            let contacts = [
-                vec![CONTACT_ABOVE; gs[0].positions.len()],
-                vec![CONTACT_ABOVE | CONTACT_BELOW; gs[1].positions.len()],
-                vec![CONTACT_BELOW; gs[2].positions.len()],
-            ];
-            let mut layers = sphere_layers(&gs, &topos, &fields, &[1.0, 1.0, 1.0]);
-            for (l, c) in layers.iter_mut().zip(&contacts) {
-                l.contacts = c;
-            }
-            let start: Vec<Vec<Vec3>> = gs.iter().map(|m| m.positions.clone()).collect();
             let off = RepairParams {
                 snap_tolerance: -1.0,
                 coarse_edge: 12.0,
@@ -2136,36 +2150,9 @@ mod tests {
                 snap_follow: true,
                 ..off.clone()
             };
-            let (mut a, mut b) = (start.clone(), start.clone());
-            let (_, ra) = repair(None, &layers, &mut a, &off);
-            let (_, rb) = repair(None, &layers, &mut b, &on);
-            let refs: Vec<&Mesh> = gs.iter().collect();
-            let (va, vb) = (verify(None, &refs, &a).unwrap(), verify(None, &refs, &b).unwrap());
-            prop_assert!(va.is_clean() && vb.is_clean(), "{:?} {:?}", va, vb);
-            prop_assert!(vb.self_intersections <= va.self_intersections);
+            let (ra, rb, ea, eb) = snap_off_on(&gs, &[0.5, 0.51, 0.52], &off, &on)?;
             prop_assert_eq!(ra.snap_goals, 0);
             prop_assert!(rb.snap_goals > 0, "the pushes overdo somewhere: {:?}", rb);
-            // Mean |distance - rule| over the vertices either run moved, to each neighbouring
-            // mesh.
-            let error = |pos: &[Vec<Vec3>]| {
-                let (mut sum, mut n) = (0.0, 0usize);
-                for k in 0..3usize {
-                    for v in 0..start[k].len() {
-                        if a[k][v] == start[k][v] && b[k][v] == start[k][v] {
-                            continue;
-                        }
-                        for j in [k.wrapping_sub(1), k + 1] {
-                            if j < 3 {
-                                let d = distance_brute(&pos[k][v], &gs[j].triangles, &pos[j]);
-                                sum += (d - 0.01).abs();
-                                n += 1;
-                            }
-                        }
-                    }
-                }
-                sum / n.max(1) as f64
-            };
-            let (ea, eb) = (error(&a), error(&b));
             prop_assert!(eb < ea, "with snap_follow {} vs without {}", eb, ea);
         }
     }
