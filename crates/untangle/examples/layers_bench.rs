@@ -219,6 +219,16 @@ fn main() {
                 c3 - c2,
                 (out.projection_ms + out.repair_ms) / 1e3
             );
+            // FNV-1a over the output coordinates' bits: changes iff any output vertex moved.
+            let hash = out
+                .positions
+                .iter()
+                .flatten()
+                .flat_map(|p| [p.x, p.y, p.z])
+                .fold(0xcbf2_9ce4_8422_2325u64, |h, x| {
+                    (h ^ x.to_bits()).wrapping_mul(0x0100_0000_01b3)
+                });
+            eprintln!("  output hash {hash:016x}");
             let pr = &out.pair_repair;
             eprintln!(
                 "  repair wall (s): push {:.3}, pairs {:.3}, self {:.3}, settle {:.3}; self pairs {} -> {} in {} rounds",
