@@ -181,7 +181,8 @@ struct Chain {
 /// ends the segments `{x, t}` and `{y, t}`; their pieces in `x` and `y` continue into each other
 /// across `e`, and their pieces in `t` continue into each other inside `t`. On a boundary edge
 /// (no `y`) the piece in `x` ends with `B` and the piece in `t` with `I`. Piece indices must stay
-/// below `2^31` (the links pack the entry end into the low bit).
+/// below `2^31 - 2` (the links pack the entry end into the low bit; the three largest values
+/// are [`END_B`], [`END_I`] and `WALKED`).
 #[allow(clippy::type_complexity)]
 fn link_pieces(
     mesh: &AnalysisMesh,
@@ -256,11 +257,16 @@ fn link_pieces(
     Ok((links, across))
 }
 
-/// The chains and cycles of linked pieces, with all their steps in one list.
-fn walk_chains(links: &[[u32; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8)>) {
+/// Marks a piece as walked in [`walk_chains`] (both of its links are overwritten with it; it
+/// differs from every piece link and from [`END_B`] / [`END_I`]).
+const WALKED: u32 = u32::MAX - 2;
+
+/// The chains and cycles of linked pieces, with all their steps in one list. Consumes `links`:
+/// a walked piece's links are overwritten with [`WALKED`] (no separate visited flags; the test
+/// reads the links that the walk reads next anyway).
+fn walk_chains(links: &mut [[u32; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8)>) {
     let n = links.len();
     let mut all_steps: Vec<(u32, u8)> = Vec::with_capacity(n);
-    let mut visited = vec![false; n];
     let mut chains = Vec::new();
     let loop_vertex_of = |piece: u32| -> u32 {
         let seg = &segs.segments[(piece / 2) as usize];
@@ -273,14 +279,14 @@ fn walk_chains(links: &[[u32; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8
             .unwrap_or(NONE)
     };
     // Follows the chain from `start` entered at `entry`, until a terminal or back at `start`.
-    let walk = |start: u32, entry: u8, visited: &mut Vec<bool>, all: &mut Vec<(u32, u8)>| {
+    let walk = |start: u32, entry: u8, links: &mut [[u32; 2]], all: &mut Vec<(u32, u8)>| {
         let first = all.len();
         let mut turns = Vec::new();
         let (mut p, mut e) = (start, entry);
         loop {
-            visited[p as usize] = true;
-            all.push((p, e));
             let link = links[p as usize][1 - e as usize];
+            links[p as usize] = [WALKED; 2];
+            all.push((p, e));
             if link >= END_I {
                 return Chain {
                     steps: first..all.len(),
@@ -293,9 +299,9 @@ fn walk_chains(links: &[[u32; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8
             if piece == partner(p) {
                 turns.push((all.len() - 1 - first, loop_vertex_of(p)));
             }
-            // Back at the start, or (cannot happen for consistent, mutual links) at a visited
+            // Back at the start, or (cannot happen for consistent, mutual links) at a walked
             // piece: stop rather than loop.
-            if (piece == start && end == entry) || visited[piece as usize] {
+            if (piece == start && end == entry) || links[piece as usize][0] == WALKED {
                 return Chain {
                     steps: first..all.len(),
                     closed: true,
@@ -309,12 +315,12 @@ fn walk_chains(links: &[[u32; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8
     };
     for p in 0..n as u32 {
         for k in 0..2u8 {
-            if visited[p as usize] {
+            let link = links[p as usize][k as usize];
+            if link == WALKED {
                 break;
             }
-            let link = links[p as usize][k as usize];
             if link >= END_I {
-                let mut ch = walk(p, k, &mut visited, &mut all_steps);
+                let mut ch = walk(p, k, links, &mut all_steps);
                 if let Some(ends) = ch.ends.as_mut() {
                     ends[0] = end_kind(link);
                 }
@@ -323,8 +329,8 @@ fn walk_chains(links: &[[u32; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32, u8
         }
     }
     for p in 0..n as u32 {
-        if !visited[p as usize] {
-            chains.push(walk(p, 0, &mut visited, &mut all_steps));
+        if links[p as usize][0] != WALKED {
+            chains.push(walk(p, 0, links, &mut all_steps));
         }
     }
     (chains, all_steps)
@@ -426,8 +432,8 @@ pub fn trace_paths(
     crossings: &[Crossing],
     segs: &Segments,
 ) -> Result<(Vec<Path>, Vec<Tanglement>), Inconsistency> {
-    let (links, across) = link_pieces(mesh, crossings, segs)?;
-    let (chains, all_steps) = walk_chains(&links, segs);
+    let (mut links, across) = link_pieces(mesh, crossings, segs)?;
+    let (chains, all_steps) = walk_chains(&mut links, segs);
     let steps_of = |c: &Chain| &all_steps[c.steps.clone()];
     let mut scratch = OddEdges::new(mesh.topology.num_edges());
     let object_of_piece = |p: u32| mesh.object_of_triangle[piece_triangle(segs, p) as usize];
@@ -469,6 +475,10 @@ pub fn trace_paths(
         };
         classes.push(class);
     }
+    // One path per chain, two per EIGHT (a CROSS pair of chains gives at most two): reserved
+    // once.
+    let eights = classes.iter().filter(|&&c| c == Class::Eight).count();
+    paths.reserve_exact(chains.len() + eights);
     // CROSS: exactly two BLI chains at one loop vertex.
     let mut cross_partner = vec![usize::MAX; chains.len()];
     for list in bli_by_vertex.values() {
@@ -506,7 +516,8 @@ pub fn trace_paths(
         idx
     };
 
-    let mut tanglement_kind_of_path: Vec<Option<&'static str>> = Vec::new();
+    let mut tanglement_kind_of_path: Vec<Option<&'static str>> =
+        Vec::with_capacity(paths.capacity());
     for (ci, ch) in chains.iter().enumerate() {
         match classes[ci] {
             Class::Plain(kind) => {
@@ -637,7 +648,7 @@ pub fn trace_paths(
     }
 
     // Correspondence and tanglements.
-    let mut tanglements: Vec<Tanglement> = Vec::new();
+    let mut tanglements: Vec<Tanglement> = Vec::with_capacity(paths.len());
     for i in 0..paths.len() {
         let first = paths[i].pieces[0];
         paths[i].corresponds_to = path_of_piece[partner(first) as usize];

@@ -52,7 +52,8 @@ pub fn build_segments(
     let sorted = entries_by_pair(mesh, crossings);
     let n = sorted.len();
     let same_pair = |i: usize, lo: u32, hi: u32| i < n && sorted[i][0] == lo && sorted[i][1] == hi;
-    let mut segments = Vec::with_capacity(n / 2 + 1);
+    // A segment takes one entry (loop vertex) or two: at most `n` segments, no regrowth.
+    let mut segments = Vec::with_capacity(n);
     let mut of_crossing = vec![[NONE; 2]; crossings.len()];
     let mut i = 0;
     while i < n {
