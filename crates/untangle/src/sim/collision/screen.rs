@@ -13,8 +13,8 @@
 use rayon::prelude::*;
 
 use super::impulses::{self, Collision};
-use super::proximity::{self, NearList};
-use super::{Pair, Scene};
+use super::proximity::{self, NearList, NodeStats};
+use super::{Pair, PairKind, Scene};
 use crate::geom::Vec3;
 use crate::sim::policy::ContactPolicy;
 
@@ -41,6 +41,7 @@ pub fn screen(
     policy: &dyn ContactPolicy,
     proximity: Option<bool>,
 ) -> Screened {
+    let table = VertexTable::new(scene, v);
     let chunks: Vec<Screened> = candidates
         .par_chunks(CHUNK)
         .map(|chunk| {
@@ -53,17 +54,29 @@ pub fn screen(
                     continue;
                 };
                 let nodes = scene.nodes(p);
-                let x0 = scene.positions(v, &nodes, 0.0);
+                let (x0, vel, stats) =
+                    if matches!(p.kind, PairKind::VertexTriangle | PairKind::EdgeEdge) {
+                        // Cloth nodes only: from the table.
+                        let rows = nodes.map(|k| &table.rows[k as usize]);
+                        (
+                            rows.map(|r| r.0),
+                            nodes.map(|k| v[k as usize]),
+                            rows.map(|r| r.1),
+                        )
+                    } else {
+                        proximity::pair_inputs(scene, v, &nodes)
+                    };
                 let ccd_eps = eps * scene.ccd_ratio;
                 let start = match proximity {
                     Some(within_reach) => {
                         let (verdict, start, ccd_settled) = proximity::screen_pair(
                             scene,
-                            v,
                             p,
                             eps,
                             &nodes,
                             &x0,
+                            &vel,
+                            &stats,
                             !within_reach,
                             ccd_eps,
                         );
@@ -92,6 +105,28 @@ pub fn screen(
     Screened {
         near: NearList::concat(near),
         collisions,
+    }
+}
+
+/// Per cloth vertex, its start position (as [`Scene::position`] gives it at `t = 0`) and its
+/// [`NodeStats`] at the velocities of the pass: computed once instead of once per pair of the
+/// vertex (a vertex is in dozens of candidate pairs).
+struct VertexTable {
+    rows: Vec<(Vec3, NodeStats)>,
+}
+
+impl VertexTable {
+    fn new(scene: &Scene, v: &[Vec3]) -> VertexTable {
+        VertexTable {
+            rows: (0..scene.x0.len())
+                .into_par_iter()
+                .with_min_len(1024)
+                .map(|i| {
+                    let x = scene.position(v, i as u32, 0.0);
+                    (x, NodeStats::of(&x, &v[i]))
+                })
+                .collect(),
+        }
     }
 }
 
