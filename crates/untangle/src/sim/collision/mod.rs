@@ -189,11 +189,7 @@ impl Scene<'_> {
                     .thickness_of_vertex(self.obstacles.edges[p.b as usize][0]),
             ),
         };
-        match c {
-            Contact::Skip => None,
-            Contact::Thickness(t) if t.is_finite() && t >= 0.0 => Some(t),
-            Contact::Thickness(_) => None,
-        }
+        thickness_of(c)
     }
 
     fn obstacle_thickness_of_triangle(&self, t: u32) -> f64 {
@@ -214,6 +210,17 @@ impl Scene<'_> {
                 .obstacles
                 .friction_of_vertex(self.obstacles.edges[p.b as usize][0]),
         }
+    }
+}
+
+/// The thickness of a policy's decision (`None` = skip the pair): a finite, non-negative
+/// thickness, anything else skips.
+#[inline]
+pub fn thickness_of(c: Contact) -> Option<f64> {
+    match c {
+        Contact::Skip => None,
+        Contact::Thickness(t) if t.is_finite() && t >= 0.0 => Some(t),
+        Contact::Thickness(_) => None,
     }
 }
 
