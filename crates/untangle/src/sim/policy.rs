@@ -60,6 +60,13 @@ pub trait ContactPolicy: Sync {
         let _ = pair;
         Contact::Thickness(obstacle_thickness)
     }
+
+    /// `Some(c)` when [`Self::vertex_triangle`] and [`Self::edge_edge`] return `c` for every
+    /// pair, so that a pass over many candidates may ask once instead of once per pair (the
+    /// same decisions). Default: `None` (ask per pair).
+    fn uniform_cloth(&self) -> Option<Contact> {
+        None
+    }
 }
 
 /// Conventional CCH: one thickness for every cloth-cloth pair.
@@ -75,6 +82,9 @@ impl ContactPolicy for UniformThickness {
     }
     fn edge_edge(&self, _: u32, _: u32) -> Contact {
         Contact::Thickness(self.0)
+    }
+    fn uniform_cloth(&self) -> Option<Contact> {
+        Some(Contact::Thickness(self.0))
     }
 }
 
@@ -156,5 +166,19 @@ mod tests {
             triangle: 0,
         };
         assert_eq!(p.obstacle(o, 2e-3), Contact::Thickness(2e-3));
+        // Not uniform: asked pair by pair.
+        assert_eq!(p.uniform_cloth(), None);
+    }
+
+    /// [`UniformThickness`] declares the answer it gives every cloth pair.
+    #[test]
+    fn uniform_thickness_is_uniform() {
+        let p = UniformThickness(2e-3);
+        let c = p.uniform_cloth();
+        assert_eq!(c, Some(Contact::Thickness(2e-3)));
+        for (a, b) in [(0, 1), (7, 3), (u32::MAX, 0)] {
+            assert_eq!(Some(p.vertex_triangle(a, b)), c);
+            assert_eq!(Some(p.edge_edge(a, b)), c);
+        }
     }
 }

@@ -189,11 +189,7 @@ impl Scene<'_> {
                     .thickness_of_vertex(self.obstacles.edges[p.b as usize][0]),
             ),
         };
-        match c {
-            Contact::Skip => None,
-            Contact::Thickness(t) if t.is_finite() && t >= 0.0 => Some(t),
-            Contact::Thickness(_) => None,
-        }
+        thickness_of(c)
     }
 
     fn obstacle_thickness_of_triangle(&self, t: u32) -> f64 {
@@ -214,6 +210,17 @@ impl Scene<'_> {
                 .obstacles
                 .friction_of_vertex(self.obstacles.edges[p.b as usize][0]),
         }
+    }
+}
+
+/// The thickness of a policy's decision (`None` = skip the pair): a finite, non-negative
+/// thickness, anything else skips.
+#[inline]
+pub fn thickness_of(c: Contact) -> Option<f64> {
+    match c {
+        Contact::Skip => None,
+        Contact::Thickness(t) if t.is_finite() && t >= 0.0 => Some(t),
+        Contact::Thickness(_) => None,
     }
 }
 
@@ -362,12 +369,26 @@ pub fn coordinate_scale(x: &[Vec3; 4]) -> f64 {
 /// which the fold then skips), with plain comparisons instead of `f64::max`'s NaN selects.
 #[inline]
 pub fn abs_max(x: &[Vec3; 4]) -> f64 {
+    max_of_abs_maxes(&x.map(|p| vec_abs_max(&p)))
+}
+
+/// One vector's part of [`abs_max`]: nalgebra's `amax` (`a >= |c|` coordinate by coordinate;
+/// a NaN after the first coordinate makes it NaN).
+#[inline(always)]
+pub fn vec_abs_max(p: &Vec3) -> f64 {
+    let mut a = p.x.abs();
+    for c in [p.y.abs(), p.z.abs()] {
+        a = if a >= c { a } else { c };
+    }
+    a
+}
+
+/// [`abs_max`] from the four vectors' [`vec_abs_max`] (e.g. tabulated per vertex): the fold from
+/// 0 with `f64::max`, NaNs skipped.
+#[inline(always)]
+pub fn max_of_abs_maxes(a: &[f64; 4]) -> f64 {
     let mut m = 0.0f64;
-    for p in x {
-        let mut a = p.x.abs();
-        for c in [p.y.abs(), p.z.abs()] {
-            a = if a >= c { a } else { c };
-        }
+    for &a in a {
         // `m` is never NaN: `f64::max(m, a)` is `a` if `a > m`, else `m`.
         if a > m {
             m = a;

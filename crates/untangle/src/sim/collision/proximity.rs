@@ -76,6 +76,12 @@ fn dormant_given_gap(gap: f64, scale: f64, vel: &[Vec3; 4], vt: bool, eps: f64, 
 /// can shrink over the step.
 #[inline]
 pub fn relative_speed(vel: &[Vec3; 4], vt: bool) -> f64 {
+    relative_speed_given_max(vel, vt, super::abs_max(vel))
+}
+
+/// [`relative_speed`] given [`super::abs_max`] of the velocities, `vmax`.
+#[inline(always)]
+fn relative_speed_given_max(vel: &[Vec3; 4], vt: bool, vmax: f64) -> f64 {
     let d = |i: usize, j: usize| (vel[i] - vel[j]).norm_squared();
     // Unrolled; `max0` is `f64::max` for a non-NaN first argument (from 0, a NaN is skipped
     // either way), without the NaN selects of `f64::max`.
@@ -84,21 +90,65 @@ pub fn relative_speed(vel: &[Vec3; 4], vt: bool) -> f64 {
     } else {
         max0(max0(max0(max0(0.0, d(0, 2)), d(0, 3)), d(1, 2)), d(1, 3))
     };
-    let vmax = super::abs_max(vel);
     rel.sqrt() * (1.0 + 1e-9) + 1e-9 * vmax
 }
 
 /// The fastest node's speed of each primitive of a pair (nodes `[p, a, b, c]` when `vt`, else
 /// two edges), at least 0: `max_k |v_k|` over each primitive's nodes, as a fold from 0 with
 /// `f64::max` gives it (ours).
-#[inline]
+#[cfg(test)]
 fn primitive_speeds(vel: &[Vec3; 4], vt: bool) -> (f64, f64) {
-    let sp = vel.map(|w| w.norm());
+    primitive_speeds_of(vel.map(|w| w.norm()), vt)
+}
+
+/// [`primitive_speeds`] from the nodes' speeds `sp`.
+#[inline(always)]
+fn primitive_speeds_of(sp: [f64; 4], vt: bool) -> (f64, f64) {
     if vt {
         (max0(0.0, sp[0]), max0(max0(max0(0.0, sp[1]), sp[2]), sp[3]))
     } else {
         (max0(max0(0.0, sp[0]), sp[1]), max0(max0(0.0, sp[2]), sp[3]))
     }
+}
+
+/// Per node of a pair, what [`screen_pair`] needs besides its start position and velocity:
+/// its speed `|v|` and [`super::vec_abs_max`] of its velocity and of its start position. The
+/// same for every pair of a node, so screening tabulates them once per pass for the cloth
+/// vertices ([`super::screen`]); the same bits as computing them per pair.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NodeStats {
+    /// `|v|`.
+    pub speed: f64,
+    /// Largest absolute coordinate of the velocity.
+    pub vel_max: f64,
+    /// Largest absolute coordinate of the start position.
+    pub pos_max: f64,
+}
+
+impl NodeStats {
+    /// The statistics of a node at start position `x` with velocity `v`.
+    #[inline]
+    pub fn of(x: &Vec3, v: &Vec3) -> NodeStats {
+        NodeStats {
+            speed: v.norm(),
+            vel_max: super::vec_abs_max(v),
+            pos_max: super::vec_abs_max(x),
+        }
+    }
+}
+
+/// A pair's start positions, velocities and [`NodeStats`] at velocities `v`, computed from
+/// the scene (screening reads the cloth vertices' from its table instead).
+#[inline]
+pub fn pair_inputs(
+    scene: &Scene,
+    v: &[Vec3],
+    nodes: &[u32; 4],
+) -> ([Vec3; 4], [Vec3; 4], [NodeStats; 4]) {
+    let x = scene.positions(v, nodes, 0.0);
+    let vel = nodes.map(|k| scene.velocity(v, k));
+    let stats = [0, 1, 2, 3].map(|k| NodeStats::of(&x[k], &vel[k]));
+    (x, vel, stats)
 }
 
 /// `f64::max(m, c)` for `m` not NaN (a NaN `c` leaves `m`, as `f64::max` does), in one
@@ -174,7 +224,7 @@ pub struct StartState {
 }
 
 /// Proximity's verdict on candidate `p` (nodes `nodes`, start positions `x`, thickness `eps`)
-/// at the velocities `v` the step starts with, what it learnt about the start state (shared
+/// at the velocities `vel` of its nodes the step starts with (`stats`: their [`NodeStats`]), what it learnt about the start state (shared
 /// with the first CCD pass), and whether the start gap already shows that CCD with thickness
 /// `ccd_eps` finds nothing (the gap exceeds `ccd_eps` plus the largest relative displacement
 /// of the pair's nodes over the step). With `lazy` (allowed only without `within_reach`), inert
@@ -182,22 +232,23 @@ pub struct StartState {
 #[allow(clippy::too_many_arguments)]
 pub fn screen_pair(
     scene: &Scene,
-    v: &[Vec3],
     p: Pair,
     eps: f64,
     nodes: &[u32; 4],
     x: &[Vec3; 4],
+    vel: &[Vec3; 4],
+    stats: &[NodeStats; 4],
     lazy: bool,
     ccd_eps: f64,
 ) -> (Verdict, StartState, bool) {
     let vt = p.is_vertex_triangle();
-    let vel = nodes.map(|k| scene.velocity(v, k));
     let h = scene.h;
-    let rel = relative_speed(&vel, vt);
+    // `relative_speed`, `primitive_speeds` and `coordinate_scale` from the nodes' statistics.
+    let rel = relative_speed_given_max(vel, vt, super::max_of_abs_maxes(&stats.map(|s| s.vel_max)));
     // Cheap rejection: the reach below is at most the fastest node of each primitive's speed
     // times h, and the distance at least the axis gap (a pair rejected here would be found
     // neither close nor active by its closest points either).
-    let (speed_a, speed_b) = primitive_speeds(&vel, vt);
+    let (speed_a, speed_b) = primitive_speeds_of(stats.map(|s| s.speed), vt);
     let reach_max = (speed_a + speed_b) * h;
     let far = (2.0 * eps).max(eps + 2.0 * reach_max);
     let dormant_at = if lazy {
@@ -207,7 +258,7 @@ pub fn screen_pair(
     };
     let ccd_at = ccd_eps + rel * h * (1.0 + 1e-9);
     // The centre axis settles most pairs; the normal axis only when it does not.
-    let scale = super::coordinate_scale(x);
+    let scale = super::max_of_abs_maxes(&stats.map(|s| s.pos_max));
     let mut gap = super::centre_gap(x, vt);
     if !super::gap_exceeds(gap, scale, dormant_at.min(far).max(ccd_at)) {
         gap = gap.max(super::normal_gap(x, vt));
@@ -246,7 +297,7 @@ pub fn screen_pair(
     start.distance = Some(geom.distance);
     // Only pairs that could come within eps during the step matter.
     let reach: f64 = (0..4)
-        .map(|k| geom.weights[k].abs() * vel[k].norm())
+        .map(|k| geom.weights[k].abs() * stats[k].speed)
         .sum::<f64>()
         * h;
     let gap = geom.distance - eps;
@@ -427,8 +478,9 @@ fn sweeps(
                 let eps = scene
                     .thickness(pair, policy)
                     .expect("dormant pairs have a thickness");
-                let x = scene.positions(v_start, &nodes, 0.0);
-                index = match screen_pair(scene, v_start, pair, eps, &nodes, &x, false, 0.0).0 {
+                let (x, vel, stats) = pair_inputs(scene, v_start, &nodes);
+                index = match screen_pair(scene, pair, eps, &nodes, &x, &vel, &stats, false, 0.0).0
+                {
                     Verdict::Near(n) => {
                         near.nears.push(n);
                         impulsed.push(false);
@@ -540,6 +592,35 @@ mod tests {
             let scale = crate::sim::collision::abs_max(&vel);
             let fold = vel.iter().fold(0.0f64, |m, p| m.max(p.amax()));
             prop_assert_eq!(scale.to_bits(), fold.to_bits());
+        }
+
+        /// Oracle for the per-node statistics [`screen_pair`] reads (tabulated per vertex by
+        /// screening): the speeds, the relative speed and the coordinate scale they give are
+        /// the bits of the per-pair computations of before ([`primitive_speeds`],
+        /// [`relative_speed`], the `f64::max` folds of `amax`), also with signed zeros,
+        /// infinities and NaNs.
+        #[test]
+        fn node_stats_give_the_per_pair_bits(
+            v in prop::array::uniform4(prop::array::uniform3(coordinate())),
+            x in prop::array::uniform4(prop::array::uniform3(coordinate())),
+            vt in any::<bool>(),
+        ) {
+            let (vel, x) = (v.map(v3), x.map(v3));
+            let stats = [0, 1, 2, 3].map(|k| NodeStats::of(&x[k], &vel[k]));
+            let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+            let vmax = crate::sim::collision::max_of_abs_maxes(&stats.map(|s| s.vel_max));
+            let (got, want) = (relative_speed_given_max(&vel, vt, vmax), relative_speed(&vel, vt));
+            prop_assert!(same(got, want), "{got} vs {want}");
+            let (a, b) = primitive_speeds_of(stats.map(|s| s.speed), vt);
+            let (wa, wb) = primitive_speeds(&vel, vt);
+            prop_assert_eq!((a.to_bits(), b.to_bits()), (wa.to_bits(), wb.to_bits()));
+            let scale = crate::sim::collision::max_of_abs_maxes(&stats.map(|s| s.pos_max));
+            let fold = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
+            prop_assert_eq!(scale.to_bits(), fold.to_bits());
+            prop_assert_eq!(scale.to_bits(), crate::sim::collision::coordinate_scale(&x).to_bits());
+            for k in 0..4 {
+                prop_assert!(same(stats[k].speed, vel[k].norm()));
+            }
         }
     }
 

@@ -13,8 +13,8 @@
 use rayon::prelude::*;
 
 use super::impulses::{self, Collision};
-use super::proximity::{self, NearList};
-use super::{Pair, Scene};
+use super::proximity::{self, NearList, NodeStats};
+use super::{Pair, PairKind, Scene};
 use crate::geom::Vec3;
 use crate::sim::policy::ContactPolicy;
 
@@ -41,6 +41,9 @@ pub fn screen(
     policy: &dyn ContactPolicy,
     proximity: Option<bool>,
 ) -> Screened {
+    let table = VertexTable::new(scene, v);
+    // The cloth pairs' thickness, when the policy gives all the same (asked once).
+    let uniform = policy.uniform_cloth().map(super::thickness_of);
     let chunks: Vec<Screened> = candidates
         .par_chunks(CHUNK)
         .map(|chunk| {
@@ -49,21 +52,37 @@ pub fn screen(
                 collisions: Vec::new(),
             };
             for &p in chunk {
-                let Some(eps) = scene.thickness(p, policy) else {
+                let cloth = matches!(p.kind, PairKind::VertexTriangle | PairKind::EdgeEdge);
+                let eps = match uniform {
+                    Some(t) if cloth => t,
+                    _ => scene.thickness(p, policy),
+                };
+                let Some(eps) = eps else {
                     continue;
                 };
                 let nodes = scene.nodes(p);
-                let x0 = scene.positions(v, &nodes, 0.0);
+                let (x0, vel, stats) = if cloth {
+                    // Cloth nodes only: from the table.
+                    let rows = nodes.map(|k| &table.rows[k as usize]);
+                    (
+                        rows.map(|r| r.0),
+                        nodes.map(|k| v[k as usize]),
+                        rows.map(|r| r.1),
+                    )
+                } else {
+                    proximity::pair_inputs(scene, v, &nodes)
+                };
                 let ccd_eps = eps * scene.ccd_ratio;
                 let start = match proximity {
                     Some(within_reach) => {
                         let (verdict, start, ccd_settled) = proximity::screen_pair(
                             scene,
-                            v,
                             p,
                             eps,
                             &nodes,
                             &x0,
+                            &vel,
+                            &stats,
                             !within_reach,
                             ccd_eps,
                         );
@@ -95,6 +114,28 @@ pub fn screen(
     }
 }
 
+/// Per cloth vertex, its start position (as [`Scene::position`] gives it at `t = 0`) and its
+/// [`NodeStats`] at the velocities of the pass: computed once instead of once per pair of the
+/// vertex (a vertex is in dozens of candidate pairs).
+struct VertexTable {
+    rows: Vec<(Vec3, NodeStats)>,
+}
+
+impl VertexTable {
+    fn new(scene: &Scene, v: &[Vec3]) -> VertexTable {
+        VertexTable {
+            rows: (0..scene.x0.len())
+                .into_par_iter()
+                .with_min_len(1024)
+                .map(|i| {
+                    let x = scene.position(v, i as u32, 0.0);
+                    (x, NodeStats::of(&x, &v[i]))
+                })
+                .collect(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -106,10 +147,26 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
+    /// [`UniformThickness`] answered pair by pair, without [`ContactPolicy::uniform_cloth`].
+    struct PerPair(UniformThickness);
+
+    impl ContactPolicy for PerPair {
+        fn max_thickness(&self) -> f64 {
+            self.0.max_thickness()
+        }
+        fn vertex_triangle(&self, v: u32, t: u32) -> crate::sim::policy::Contact {
+            self.0.vertex_triangle(v, t)
+        }
+        fn edge_edge(&self, a: u32, b: u32) -> crate::sim::policy::Contact {
+            self.0.edge_edge(a, b)
+        }
+    }
+
     /// Oracle for [`screen`]'s CCD part: the collisions are exactly those of a plain CCD pass
     /// ([`impulses::detect`]) over the sorted candidates, bit for bit and in the same order,
     /// with proximity off, with lazy and with eager proximity screening, on crumpled sheets
-    /// thrown at random velocities (many collisions).
+    /// thrown at random velocities (many collisions); with the policy's uniform thickness
+    /// asked once per pass (the default policy) and pair by pair (same lists).
     #[test]
     fn screened_collisions_are_those_of_a_full_ccd_pass() {
         let mut total = 0;
@@ -151,12 +208,18 @@ mod tests {
             let want = impulses::detect(&scene, &v, &sorted, &policy, &|_: &[u32; 4]| false);
             total += want.len();
             for proximity in [None, Some(false), Some(true)] {
-                let got = screen(&scene, &v, &cands, &policy, proximity).collisions;
-                assert_eq!(got.len(), want.len(), "seed {seed} {proximity:?}");
-                for (a, b) in got.iter().zip(&want) {
-                    assert_eq!(a.pair, b.pair, "seed {seed} {proximity:?}");
-                    assert_eq!(a.toi.to_bits(), b.toi.to_bits(), "seed {seed}");
-                    assert_eq!(a.thickness.to_bits(), b.thickness.to_bits());
+                let screened = screen(&scene, &v, &cands, &policy, proximity);
+                // The same policy asked pair by pair (not declared uniform): the same lists.
+                let per_pair = screen(&scene, &v, &cands, &PerPair(policy), proximity);
+                assert_eq!(screened.near.evaluated(), per_pair.near.evaluated());
+                assert_eq!(screened.near.dormant(), per_pair.near.dormant());
+                for got in [screened.collisions, per_pair.collisions] {
+                    assert_eq!(got.len(), want.len(), "seed {seed} {proximity:?}");
+                    for (a, b) in got.iter().zip(&want) {
+                        assert_eq!(a.pair, b.pair, "seed {seed} {proximity:?}");
+                        assert_eq!(a.toi.to_bits(), b.toi.to_bits(), "seed {seed}");
+                        assert_eq!(a.thickness.to_bits(), b.thickness.to_bits());
+                    }
                 }
             }
         }
