@@ -28,8 +28,8 @@ fn main() {
             .unwrap_or(d)
     };
     let (first, last, cells, max_steps) = (arg(1, 1), arg(2, 50), arg(3, 14), arg(4, 400));
-    println!("| seed | pairs | outcome | steps | clean at | red monotone | first increase (step: from -> to) | increases | final clean (independent) | wall s | trial: steps retried / retries / accepted with increase | max stretch (run / final) |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| seed | pairs | outcome | steps | clean at | red monotone | first increase (step: from -> to) | increases | final clean (independent) | wall s | trial: steps retried / retries / accepted with increase | max stretch (run / final) | BW steps / switches |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut trial_total = [0usize; 3];
     let mut steps_resolved = Vec::new();
     let mut resolved = 0;
@@ -157,7 +157,7 @@ fn main() {
             independent_clean += 1;
         }
         println!(
-            "| {seed} | {} | {:?} | {} | {} | {} | {} | {} | {} | {:.1} | {} / {} / {} | {:.3} / {:.3} |",
+            "| {seed} | {} | {:?} | {} | {} | {} | {} | {} | {} | {:.1} | {} / {} / {} | {:.3} / {:.3} | {} |",
             s.initial_pairs,
             s.outcome,
             s.steps,
@@ -173,7 +173,8 @@ fn main() {
             trial[1],
             trial[2],
             tracked.max_stretch,
-            tracked.final_stretch
+            tracked.final_stretch,
+            common::integrator_use(&r)
         );
     }
     steps_resolved.sort_unstable();

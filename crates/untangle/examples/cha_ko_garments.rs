@@ -25,8 +25,8 @@ use untangle::methods::cha_ko::{ResolveParams, Resolver};
 fn main() {
     use common::arg;
     let (min_vertices, tangle_steps, max_steps) = (arg(1, 2000), arg(2, 25), arg(3, 600));
-    println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s | max stretch (run / final) | final elastic / kinetic J |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s | max stretch (run / final) | final elastic / kinetic J | BW steps / switches |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     // CHAKO_ONLY=<name>: one garment; CHAKO_STALLS=1: print the last stalls of a run;
     // CHAKO_KINDS=1: the path kinds (and their inside-region sizes) before and after;
     // CHAKO_WRITE=<dir>: the tangled garment as <dir>/<name>_tangled.obj.
@@ -89,10 +89,25 @@ fn main() {
         for &v in &pins {
             r.simulator_mut().set_pinned(v, true).expect("pin");
         }
-        let (s, tracked) = common::run_tracking(&mut r, |_, _| {});
+        // CHAKO_TRACE=1: one line per step on stderr.
+        let trace = std::env::var("CHAKO_TRACE").is_ok();
+        let (s, tracked) = common::run_tracking(&mut r, |st, sr| {
+            if trace {
+                eprintln!(
+                    "{name} step {} pairs {} red {} {:?} {:?} ms sim {:.1} stretch {:.3}",
+                    st.step,
+                    st.intersecting_pairs,
+                    st.red_vertices,
+                    st.integrator,
+                    st.integrator_switch,
+                    st.ms_sim,
+                    sr.max_stretch
+                );
+            }
+        });
         let wall = t.elapsed().as_secs_f64();
         println!(
-            "| {name} | {} | {} | {} | {bli} | {:?} | {} | {} | {} | {:.1} / {:.2} / {:.1} | {:.1} | {:.3} / {:.3} | {:.3e} / {:.3e} |",
+            "| {name} | {} | {} | {} | {bli} | {:?} | {} | {} | {} | {:.1} / {:.2} / {:.1} | {:.1} | {:.3} / {:.3} | {:.3e} / {:.3e} | {} |",
             mesh.positions.len(),
             mesh.triangles.len(),
             a0.segments.len(),
@@ -107,7 +122,8 @@ fn main() {
             tracked.max_stretch,
             tracked.final_stretch,
             tracked.final_elastic,
-            tracked.final_kinetic
+            tracked.final_kinetic,
+            common::integrator_use(&r)
         );
         if std::env::var("CHAKO_KINDS").is_ok() {
             let a1 = analyze(&am, r.simulator().positions()).expect("analysis");

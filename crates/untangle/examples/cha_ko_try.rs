@@ -78,8 +78,9 @@ fn main() {
             )
     });
     println!(
-        "max stretch (run / final) {:.3} / {:.3}, final elastic / kinetic energy {:.3e} / {:.3e} J",
-        tracked.max_stretch, tracked.final_stretch, tracked.final_elastic, tracked.final_kinetic
+        "max stretch (run / final) {:.3} / {:.3}, final elastic / kinetic energy {:.3e} / {:.3e} J, BW steps / switches {}",
+        tracked.max_stretch, tracked.final_stretch, tracked.final_elastic, tracked.final_kinetic,
+        common::integrator_use(&r)
     );
     // AFTER=N: N more plain simulator steps (collision thickness `eps`, the loop's simulator and
     // settings) after the loop, printing the stretch and energies every 10 steps.

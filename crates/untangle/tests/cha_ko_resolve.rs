@@ -343,3 +343,96 @@ fn the_projective_loop_resolves_with_its_default_cg_cap() {
         assert!(s.finesse.rows[0].count > 0, "{name}");
     }
 }
+
+#[test]
+fn the_adaptive_integrator_switches_by_its_rule_and_is_deterministic() {
+    // `ResolveParams::adaptive`: projective dynamics, Baraff & Witkin for `bw_steps` steps after
+    // `stall_steps` steps without a new lowest pair count. Every step's record says which
+    // integrator ran; replaying the rule (`IntegratorSchedule`) over the recorded pair counts
+    // gives the same sequence, and one and two threads give the same run bit for bit.
+    use untangle::methods::cha_ko::{AdaptiveIntegrator, IntegratorSchedule, IntegratorSwitch};
+    use untangle::sim::Integrator;
+    let g = Garment::new(untangle::scenes::exploded::exploded(2, 10).meshes[0].clone()).unwrap();
+    let rule = AdaptiveIntegrator {
+        stall_steps: 1,
+        bw_steps: 2,
+        restart_stall: true,
+    };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut p = params(16);
+            p.adaptive = Some(rule);
+            let mut r = Resolver::new(&g, p).unwrap();
+            assert_eq!(r.simulator().params().integrator, Integrator::Projective);
+            assert_eq!(r.simulator().params().projective_cg_iterations, 1);
+            let mut used = Vec::new();
+            for _ in 0..16 {
+                let (rec, sr) = r.step().unwrap();
+                // The step report says what ran: a projective step reports its iterations.
+                assert_eq!(
+                    sr.projective.is_some(),
+                    rec.integrator == Integrator::Projective
+                );
+                used.push(r.simulator().params().integrator);
+            }
+            let hist: Vec<_> = r
+                .history()
+                .iter()
+                .map(|h| {
+                    (
+                        h.intersecting_pairs,
+                        h.integrator,
+                        h.integrator_switch,
+                        format!("{:?}", h.uv),
+                    )
+                })
+                .collect();
+            (r.simulator().positions().to_vec(), hist, used)
+        })
+    };
+    let (x1, h1, used) = run(1);
+    let mut s = IntegratorSchedule::new(rule);
+    for (i, h) in h1.iter().enumerate() {
+        assert_eq!((h.1, h.2), (s.current(), s.pending_switch()), "step {i}");
+        assert_eq!(used[i], h.1);
+        s.observe(h.0);
+    }
+    let switches: Vec<_> = h1.iter().filter_map(|h| h.2).collect();
+    assert!(switches.contains(&IntegratorSwitch::Stalled), "{h1:?}");
+    assert!(switches.contains(&IntegratorSwitch::StretchDone), "{h1:?}");
+    assert!(h1.iter().any(|h| h.1 == Integrator::BaraffWitkin));
+    assert!(h1.iter().any(|h| h.1 == Integrator::Projective));
+    let (x2, h2, _) = run(2);
+    assert_eq!(h1, h2);
+    assert_eq!(x1, x2);
+}
+
+#[test]
+fn the_adaptive_loop_resolves_across_a_switch() {
+    // With the adaptive integrator's defaults (8 stalled projective steps, then Baraff & Witkin
+    // to the end), BBII stalls under projective dynamics, switches, and still ends
+    // intersection-free with the uv restored; CLOSED resolves without a switch.
+    use untangle::methods::cha_ko::{AdaptiveIntegrator, IntegratorSwitch};
+    use untangle::sim::Integrator;
+    for (name, switches) in [("closed", 0), ("bbii", 1)] {
+        let scene = untangle::scenes::by_name(name, None, 1).unwrap();
+        let g = scene_garment(&scene);
+        let mut p = params(400);
+        p.adaptive = Some(AdaptiveIntegrator::default());
+        let mut r = Resolver::new(&g, p.clone()).unwrap();
+        r.run(|_| {}).unwrap();
+        let h = r.history();
+        let sw: Vec<_> = h.iter().filter_map(|s| s.integrator_switch).collect();
+        assert_eq!(sw.len(), switches, "{name}: {sw:?}");
+        if switches > 0 {
+            assert_eq!(sw[0], IntegratorSwitch::Stalled);
+            assert_eq!(h.last().unwrap().integrator, Integrator::BaraffWitkin);
+        }
+        assert_eq!(h[0].integrator, Integrator::Projective);
+        resolves_with(&g, p);
+    }
+}

@@ -78,8 +78,33 @@ pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimP
 /// The Cha & Ko loop's settings from the environment: [`integrator_params`] for its simulator,
 /// and `UNTANGLE_PD_CG_CAP` as the loop's own CG cap per projective global step
 /// (`ResolveParams::projective_cg_cap`).
+///
+/// `UNTANGLE_INTEGRATOR=adaptive` selects the adaptive integrator
+/// (`ResolveParams::adaptive`: projective dynamics, Baraff & Witkin after a stall), with
+/// `UNTANGLE_ADAPTIVE_STALL` stalled steps before the switch and `UNTANGLE_ADAPTIVE_BW` steps of
+/// Baraff & Witkin then (0: for the rest of the run); `pd` / `bw` (or any other value) turn it
+/// off; unset keeps `p`'s choice.
 pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
-    p.sim = integrator_params(p.sim.clone());
+    let env = std::env::var("UNTANGLE_INTEGRATOR").ok();
+    if env.as_deref() == Some("adaptive") {
+        let mut a = p.adaptive.unwrap_or_default();
+        let num = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<usize>().ok());
+        if let Some(k) = num("UNTANGLE_ADAPTIVE_STALL") {
+            a.stall_steps = k;
+        }
+        if let Some(k) = num("UNTANGLE_ADAPTIVE_BW") {
+            a.bw_steps = if k == 0 { usize::MAX } else { k };
+        }
+        if let Some(k) = num("UNTANGLE_ADAPTIVE_RESTART") {
+            a.restart_stall = k != 0;
+        }
+        p.adaptive = Some(a);
+    } else {
+        if env.is_some() {
+            p.adaptive = None;
+        }
+        p.sim = integrator_params(p.sim.clone());
+    }
     if let Some(k) = std::env::var("UNTANGLE_PD_CG_CAP")
         .ok()
         .and_then(|s| s.parse::<usize>().ok())
@@ -170,4 +195,16 @@ pub fn sideways_push(m: &Mesh, top: f64) -> Vec<untangle::geom::Vec3> {
         .iter()
         .map(|p| untangle::geom::Vec3::new(0.3 * (top - p.z), 0.0, 0.0))
         .collect()
+}
+
+/// Steps the loop ran with Baraff & Witkin, and the integrator switches of the adaptive
+/// integrator (`ResolveParams::adaptive`), as "BW / switches".
+pub fn integrator_use(r: &untangle::methods::cha_ko::Resolver) -> String {
+    let h = r.history();
+    let bw = h
+        .iter()
+        .filter(|s| s.integrator == untangle::sim::Integrator::BaraffWitkin)
+        .count();
+    let switches = h.iter().filter(|s| s.integrator_switch.is_some()).count();
+    format!("{bw} / {switches}")
 }

@@ -129,7 +129,8 @@ pub struct SimParams {
 }
 
 /// How the implicit step before collision handling is solved.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Integrator {
     /// One Newton step of implicit Euler with the Baraff & Witkin 1998 forces, solved by
     /// filtered PCG (the default).

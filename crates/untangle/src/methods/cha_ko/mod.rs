@@ -23,6 +23,7 @@
 //! [`resolve`] (the whole loop of Fig. 1b with the simulator), [`trial`] (the trial step: a
 //! step rolled back and retried when a green vertex turned red, ours).
 
+pub mod adaptive;
 pub mod fallback;
 pub mod fan;
 pub mod operations;
@@ -37,6 +38,7 @@ pub mod state;
 pub mod tit;
 pub mod trial;
 
+pub use adaptive::{AdaptiveIntegrator, IntegratorSchedule, IntegratorSwitch};
 pub use fallback::Fallback;
 pub use params::Params;
 pub use policy::{MchPolicy, MixedEdges, PairColour};

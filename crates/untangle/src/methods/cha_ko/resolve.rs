@@ -13,6 +13,7 @@
 //! guessing), the step is recorded with the error, the uv is left as it is, and the simulator
 //! steps with the last good colouring's m-CCH policy (or plain CCH with `eps` on the first step).
 
+use super::adaptive::{AdaptiveIntegrator, IntegratorSchedule, IntegratorSwitch};
 use super::report::{FinesseStats, Stall, UvUpdateReport};
 use super::trial::{trial_step, BlockHistory, TrialReport};
 use super::{regionless, ChaKo, Params};
@@ -58,6 +59,11 @@ pub struct ResolveParams {
     /// exploded-handkerchief seeds resolved against 38 / 50 with the full CG, the same
     /// resolved sets on the rudimentary cases and garments (BENCHMARKS.md, branch loop10).
     pub projective_cg_cap: Option<usize>,
+    /// The adaptive integrator (ours, [`super::adaptive`]): when set, the loop's simulator
+    /// starts with projective dynamics (whatever `sim.integrator` says) and switches to
+    /// Baraff & Witkin for a stretch of steps when the intersecting-pair count stalls. `None`
+    /// runs `sim.integrator` throughout.
+    pub adaptive: Option<AdaptiveIntegrator>,
 }
 
 impl Default for ResolveParams {
@@ -85,6 +91,7 @@ impl Default for ResolveParams {
                 bli_regions_red: true,
             },
             projective_cg_cap: Some(1),
+            adaptive: None,
         }
     }
 }
@@ -109,6 +116,11 @@ pub struct LoopStep {
     pub uv: UvUpdateReport,
     /// The trial step ([`Params::trial_retries`]): retries and blocked pairs.
     pub trial: TrialReport,
+    /// The integrator of this step's simulator step.
+    pub integrator: Integrator,
+    /// Why the adaptive integrator ([`ResolveParams::adaptive`]) changed the integrator
+    /// before this step (`None`: same as the previous step, or no adaptive integrator).
+    pub integrator_switch: Option<IntegratorSwitch>,
     /// Whether the simulator's collision handling ended the step with an administrative quit.
     pub administrative_quit: bool,
     /// Impact zones the simulator needed.
@@ -182,6 +194,9 @@ pub struct Resolver {
     since_best: usize,
     /// The stall length at which the regionless fallback first acted in the current stall.
     regionless_fired_at: Option<usize>,
+    /// The stall length at which the adaptive integrator switched to Baraff & Witkin in the
+    /// current stall ([`AdaptiveIntegrator::restart_stall`]).
+    switched_at: Option<usize>,
     last_clean: bool,
     last_coloring: Option<Coloring>,
     /// The analysis of the positions a trial step accepted, reused at the start of the next
@@ -190,6 +205,8 @@ pub struct Resolver {
     /// Pairs the trial step blocked in the last step, with the number of consecutive steps
     /// they have been blocked ([`Params::trial_release_after`]).
     blocked_for: BlockHistory,
+    /// The adaptive integrator's state ([`ResolveParams::adaptive`]).
+    schedule: Option<IntegratorSchedule>,
 }
 
 impl Resolver {
@@ -197,6 +214,10 @@ impl Resolver {
     pub fn new(garment: &Garment, params: ResolveParams) -> Result<Resolver> {
         let mut sp = params.sim.clone();
         sp.dt = params.cha_ko.dt;
+        let schedule = params.adaptive.map(IntegratorSchedule::new);
+        if let Some(s) = &schedule {
+            sp.integrator = s.current();
+        }
         if let (Integrator::Projective, Some(k)) = (sp.integrator, params.projective_cg_cap) {
             sp.projective_cg_iterations = k;
         }
@@ -214,10 +235,12 @@ impl Resolver {
             best_pairs: usize::MAX,
             since_best: 0,
             regionless_fired_at: None,
+            switched_at: None,
             last_clean: false,
             last_coloring: None,
             analysed: None,
             blocked_for: Default::default(),
+            schedule,
         })
     }
 
@@ -249,6 +272,7 @@ impl Resolver {
     /// One pass of Fig. 1b: analysis, uv update, simulator step with m-CCH. Returns the pass's
     /// record and the simulator's step report.
     pub fn step(&mut self) -> Result<(LoopStep, StepReport)> {
+        let integrator_switch = self.apply_schedule()?;
         let t0 = Instant::now();
         let pos: Vec<Vec3> = self.sim.positions().to_vec();
         let analysis = match self.analysed.take() {
@@ -259,7 +283,13 @@ impl Resolver {
         let ms = |x: Instant, y: Instant| (y - x).as_secs_f64() * 1e3;
         let mut a = match analysis {
             Ok(a) => a,
-            Err(e) => return Ok(self.step_without_analysis(format!("{e:?}"), ms(t0, t1))),
+            Err(e) => {
+                return Ok(self.step_without_analysis(
+                    format!("{e:?}"),
+                    ms(t0, t1),
+                    integrator_switch,
+                ))
+            }
         };
         self.chako.persist_coloring(&self.am, &mut a);
         let clean = a.is_clean();
@@ -319,6 +349,7 @@ impl Resolver {
             self.best_pairs = a.segments.len();
             self.since_best = 0;
             self.regionless_fired_at = None;
+            self.switched_at = None;
         } else {
             self.since_best += 1;
         }
@@ -331,6 +362,8 @@ impl Resolver {
             tanglements: a.tanglements.len(),
             uv,
             trial,
+            integrator: self.sim.params().integrator,
+            integrator_switch,
             administrative_quit: sr.administrative_quit(),
             impact_zones: sr.collisions.impact_zones,
             analysis_error: None,
@@ -340,12 +373,43 @@ impl Resolver {
             ms_sim: ms(t2, t3),
         };
         self.last_coloring = Some(a.coloring);
+        if let Some(s) = &mut self.schedule {
+            s.observe(rec.intersecting_pairs);
+        }
         self.history.push(rec.clone());
         Ok((rec, sr))
     }
 
+    /// Puts the adaptive integrator's choice into the simulator; returns why it changed.
+    fn apply_schedule(&mut self) -> Result<Option<IntegratorSwitch>> {
+        let Some(s) = &self.schedule else {
+            return Ok(None);
+        };
+        let want = s.current();
+        if s.pending_switch() == Some(IntegratorSwitch::Stalled)
+            && s.params().restart_stall
+            && self.switched_at.is_none()
+        {
+            self.switched_at = Some(self.since_best);
+        }
+        if self.sim.params().integrator != want {
+            let mut sp = self.sim.params().clone();
+            sp.integrator = want;
+            if let (Integrator::Projective, Some(k)) = (want, self.params.projective_cg_cap) {
+                sp.projective_cg_iterations = k;
+            }
+            self.sim.set_params(sp)?;
+        }
+        Ok(s.pending_switch())
+    }
+
     /// A step whose analysis failed: no uv update, the last good colouring's policy.
-    fn step_without_analysis(&mut self, error: String, ms_analysis: f64) -> (LoopStep, StepReport) {
+    fn step_without_analysis(
+        &mut self,
+        error: String,
+        ms_analysis: f64,
+        integrator_switch: Option<IntegratorSwitch>,
+    ) -> (LoopStep, StepReport) {
         let t2 = Instant::now();
         let sr = match &self.last_coloring {
             Some(c) => {
@@ -371,6 +435,8 @@ impl Resolver {
                 ..Default::default()
             },
             trial: TrialReport::default(),
+            integrator: self.sim.params().integrator,
+            integrator_switch,
             administrative_quit: sr.administrative_quit(),
             impact_zones: sr.collisions.impact_zones,
             analysis_error: Some(error),
@@ -382,6 +448,9 @@ impl Resolver {
         self.last_clean = false;
         self.idle += 1;
         self.since_best += 1;
+        if let Some(s) = &mut self.schedule {
+            s.observe(rec.intersecting_pairs);
+        }
         self.history.push(rec.clone());
         (rec, sr)
     }
@@ -399,6 +468,7 @@ impl Resolver {
                 || self.since_best
                     >= self
                         .regionless_fired_at
+                        .max(self.switched_at)
                         .map_or(self.params.stuck_steps, |f| f + self.params.stuck_steps))
         {
             return Some(Outcome::Stuck);
