@@ -542,6 +542,15 @@ pub fn project_from(
     // consecutive evaluations read nearby grid cells (each vertex's step depends only on its
     // own state: any order gives the same result).
     let visit = morton_order(start);
+    // Rank of every vertex along that curve, and the zone's vertices in that order: after the
+    // first pass every movable vertex has been evaluated, so only zone vertices are needed,
+    // and a pass of the active set visits these instead of every vertex (same order, same
+    // steps; the scan of every vertex was ~0.17 s of sequential work at the Table-2 size).
+    let mut rank = vec![0u32; nv];
+    for (r, &v) in visit.iter().enumerate() {
+        rank[v] = r as u32;
+    }
+    let mut zone_ranked: Vec<usize> = Vec::new();
     // Relaxation cache: `quiet[v]` when the last relaxation of `v` made no move and neither
     // `v` nor a neighbour has changed position or normal since (the relaxation of `v` reads
     // only these, so it would make no move again).
@@ -556,9 +565,10 @@ pub fn project_from(
         iterations = it + 1;
 
         let needed = |v: usize| movable(v) && (!evaluated[v] || zone[v]);
+        let candidates: &[usize] = if it == 0 { &visit } else { &zone_ranked };
         let todo: Vec<usize> = if params.active_set {
             let mut todo = Vec::new();
-            for &v in &visit {
+            for &v in candidates {
                 if !needed(v) {
                     continue;
                 }
@@ -572,6 +582,7 @@ pub fn project_from(
             }
             todo
         } else {
+            // The reference scans every vertex.
             visit.iter().copied().filter(|&v| needed(v)).collect()
         };
         evaluations += todo.len();
@@ -663,11 +674,17 @@ pub fn project_from(
         }
         // The zone in the order its vertices joined it (the relaxation of a vertex does not
         // depend on the others' order).
+        let joined = zone_list.len();
         for v in ball {
             if !zone[v] {
                 zone[v] = true;
                 zone_list.push(v);
             }
+        }
+        if zone_list.len() > joined {
+            let mut fresh = zone_list[joined..].to_vec();
+            fresh.sort_unstable_by_key(|&v| rank[v]);
+            zone_ranked = merge_by_rank(&zone_ranked, &fresh, &rank);
         }
         progress(it + 1);
         let mut relaxed = 0.0f64;
@@ -753,6 +770,24 @@ pub fn project_from(
         evaluations,
         relaxations,
     }
+}
+
+/// The union of `a` and `b` (disjoint, each sorted by `rank`), sorted by `rank`.
+fn merge_by_rank(a: &[usize], b: &[usize], rank: &[u32]) -> Vec<usize> {
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        if rank[a[i]] < rank[b[j]] {
+            out.push(a[i]);
+            i += 1;
+        } else {
+            out.push(b[j]);
+            j += 1;
+        }
+    }
+    out.extend_from_slice(&a[i..]);
+    out.extend_from_slice(&b[j..]);
+    out
 }
 
 /// The vertex indices of `pos` sorted along a Morton (Z-order) curve over their bounding box
@@ -943,4 +978,30 @@ fn relax_vertex(
         return None;
     }
     Some((pos[v] + d, l))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Oracle: merging two disjoint rank-sorted lists equals sorting their concatenation.
+        #[test]
+        fn merge_by_rank_equals_sorting(
+            perm in Just((0..60usize).collect::<Vec<_>>()).prop_shuffle(),
+            split in proptest::collection::vec(any::<bool>(), 60),
+        ) {
+            let mut rank = vec![0u32; perm.len()];
+            for (r, &v) in perm.iter().enumerate() {
+                rank[v] = r as u32;
+            }
+            let (mut a, mut b): (Vec<usize>, Vec<usize>) = (0..60).partition(|&v| split[v]);
+            a.sort_unstable_by_key(|&v| rank[v]);
+            b.sort_unstable_by_key(|&v| rank[v]);
+            let mut all: Vec<usize> = (0..60).collect();
+            all.sort_unstable_by_key(|&v| rank[v]);
+            prop_assert_eq!(merge_by_rank(&a, &b, &rank), all);
+        }
+    }
 }
