@@ -713,9 +713,8 @@ fn settle(
     // shrinks) in a small BVH, refitted before every check to the boxes of the triangles at
     // `pos` (a pair that crosses at `pos` has overlapping boxes there; boxes that also held the
     // round's start, as until session 18, gave the same pairs from 1.46x the candidate pairs
-    // at the Table-2 size); all
-    // others stay where they are, in the objects' `bvhs` (whose boxes of the movable triangles
-    // are skipped).
+    // at the Table-2 size); all others stay where they are, in the objects' `bvhs` (whose
+    // boxes of the movable triangles are skipped).
     let movers = tris_of(&movable);
     let mut is_mover = vec![false; tris.len()];
     for &t in &movers {
