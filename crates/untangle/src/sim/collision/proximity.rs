@@ -224,11 +224,12 @@ pub struct StartState {
 }
 
 /// Proximity's verdict on candidate `p` (nodes `nodes`, start positions `x`, thickness `eps`)
-/// at the velocities `vel` of its nodes the step starts with (`stats`: their [`NodeStats`]), what it learnt about the start state (shared
-/// with the first CCD pass), and whether the start gap already shows that CCD with thickness
-/// `ccd_eps` finds nothing (the gap exceeds `ccd_eps` plus the largest relative displacement
-/// of the pair's nodes over the step). With `lazy` (allowed only without `within_reach`), inert
-/// pairs are [`Verdict::Dormant`] instead of having their closest points computed.
+/// at the velocities `vel` of its nodes the step starts with (`stats`: their [`NodeStats`]),
+/// what it learnt about the start state (shared with the first CCD pass), and whether the
+/// start gap already shows that CCD with thickness `ccd_eps` finds nothing (the gap exceeds
+/// `ccd_eps` plus the largest relative displacement of the pair's nodes over the step). With
+/// `lazy` (allowed only without `within_reach`), inert pairs are [`Verdict::Dormant`] instead
+/// of having their closest points computed.
 #[allow(clippy::too_many_arguments)]
 pub fn screen_pair(
     scene: &Scene,
@@ -595,10 +596,10 @@ mod tests {
         }
 
         /// Oracle for the per-node statistics [`screen_pair`] reads (tabulated per vertex by
-        /// screening): the speeds, the relative speed and the coordinate scale they give are
-        /// the bits of the per-pair computations of before ([`primitive_speeds`],
-        /// [`relative_speed`], the `f64::max` folds of `amax`), also with signed zeros,
-        /// infinities and NaNs.
+        /// screening): the relative speed, the primitives' speeds and the coordinate scale they
+        /// give equal, bit for bit, the plain per-pair formulas (`f64::max` folds of the
+        /// velocity differences, the speeds and `amax`), also with signed zeros, infinities
+        /// and NaNs.
         #[test]
         fn node_stats_give_the_per_pair_bits(
             v in prop::array::uniform4(prop::array::uniform3(coordinate())),
@@ -608,19 +609,24 @@ mod tests {
             let (vel, x) = (v.map(v3), x.map(v3));
             let stats = [0, 1, 2, 3].map(|k| NodeStats::of(&x[k], &vel[k]));
             let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
-            let vmax = crate::sim::collision::max_of_abs_maxes(&stats.map(|s| s.vel_max));
-            let (got, want) = (relative_speed_given_max(&vel, vt, vmax), relative_speed(&vel, vt));
-            prop_assert!(same(got, want), "{got} vs {want}");
-            let (a, b) = primitive_speeds_of(stats.map(|s| s.speed), vt);
-            let (wa, wb) = primitive_speeds(&vel, vt);
-            prop_assert_eq!((a.to_bits(), b.to_bits()), (wa.to_bits(), wb.to_bits()));
-            let scale = crate::sim::collision::max_of_abs_maxes(&stats.map(|s| s.pos_max));
-            let fold = x.iter().fold(0.0f64, |m, p| m.max(p.amax()));
-            prop_assert_eq!(scale.to_bits(), fold.to_bits());
-            prop_assert_eq!(scale.to_bits(), crate::sim::collision::coordinate_scale(&x).to_bits());
-            for k in 0..4 {
-                prop_assert!(same(stats[k].speed, vel[k].norm()));
+            let amax_fold = |p: &[Vec3; 4]| p.iter().fold(0.0f64, |m, w| m.max(w.amax()));
+            let split = if vt { 1 } else { 2 };
+            let mut rel = 0.0f64;
+            for i in 0..split {
+                for j in split..4 {
+                    rel = rel.max((vel[i] - vel[j]).norm_squared());
+                }
             }
+            let want = rel.sqrt() * (1.0 + 1e-9) + 1e-9 * amax_fold(&vel);
+            let vmax = crate::sim::collision::max_of_abs_maxes(&stats.map(|s| s.vel_max));
+            let got = relative_speed_given_max(&vel, vt, vmax);
+            prop_assert!(same(got, want), "{got} vs {want}");
+            let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
+            let (a, b) = primitive_speeds_of(stats.map(|s| s.speed), vt);
+            prop_assert_eq!(a.to_bits(), speed(0..split).to_bits());
+            prop_assert_eq!(b.to_bits(), speed(split..4).to_bits());
+            let scale = crate::sim::collision::max_of_abs_maxes(&stats.map(|s| s.pos_max));
+            prop_assert_eq!(scale.to_bits(), amax_fold(&x).to_bits());
         }
     }
 
