@@ -209,18 +209,23 @@ pub struct Resolver {
     schedule: Option<IntegratorSchedule>,
 }
 
+/// Sets the loop simulator's integrator, with the loop's CG cap of projective global steps
+/// ([`ResolveParams::projective_cg_cap`]) when it is projective dynamics.
+fn set_integrator(sp: &mut SimParams, integrator: Integrator, cap: Option<usize>) {
+    sp.integrator = integrator;
+    if let (Integrator::Projective, Some(k)) = (integrator, cap) {
+        sp.projective_cg_iterations = k;
+    }
+}
+
 impl Resolver {
     /// A loop for `garment` starting at its current positions, at rest.
     pub fn new(garment: &Garment, params: ResolveParams) -> Result<Resolver> {
         let mut sp = params.sim.clone();
         sp.dt = params.cha_ko.dt;
         let schedule = params.adaptive.map(IntegratorSchedule::new);
-        if let Some(s) = &schedule {
-            sp.integrator = s.current();
-        }
-        if let (Integrator::Projective, Some(k)) = (sp.integrator, params.projective_cg_cap) {
-            sp.projective_cg_iterations = k;
-        }
+        let integrator = schedule.as_ref().map_or(sp.integrator, |s| s.current());
+        set_integrator(&mut sp, integrator, params.projective_cg_cap);
         let sim = Simulator::new(garment, sp)?;
         let chako = ChaKo::new(garment, params.cha_ko.clone())?;
         let (am, _) = AnalysisMesh::single(&garment.mesh)?;
@@ -394,10 +399,7 @@ impl Resolver {
         }
         if self.sim.params().integrator != want {
             let mut sp = self.sim.params().clone();
-            sp.integrator = want;
-            if let (Integrator::Projective, Some(k)) = (want, self.params.projective_cg_cap) {
-                sp.projective_cg_iterations = k;
-            }
+            set_integrator(&mut sp, want, self.params.projective_cg_cap);
             self.sim.set_params(sp)?;
         }
         Ok(s.pending_switch())
