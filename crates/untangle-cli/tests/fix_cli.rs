@@ -531,3 +531,85 @@ fn revoke_levels_speed_up_the_restoration() {
         "steps with 1 and 3 levels per step: {steps:?}"
     );
 }
+
+/// `--integrator`: the JSON report names each step's integrator, the adaptive one switches to
+/// Baraff & Witkin when projective dynamics stalls (and says so on stdout), and the exit code
+/// agrees with an independent `check` of the written file either way.
+#[test]
+fn integrator_choice_is_reported_per_step() {
+    let d = tempfile::tempdir().unwrap();
+    tangled(d.path());
+    for (arg, stall) in [("projective", "8"), ("adaptive", "3")] {
+        let out = format!("out-{arg}.obj");
+        let rep = format!("r-{arg}.json");
+        let o = untangle(
+            &[
+                "fix",
+                "ex.obj",
+                "-o",
+                &out,
+                "--integrator",
+                arg,
+                "--adaptive-stall",
+                stall,
+                "--max-steps",
+                "60",
+                "--json",
+                &rep,
+            ],
+            d.path(),
+        );
+        let code = o.status.code();
+        assert!(matches!(code, Some(0) | Some(1)), "{}", stderr(&o));
+        let c = untangle(&["check", &out], d.path());
+        assert_eq!(c.status.code(), code, "the oracle agrees ({arg})");
+        let r = json(&d.path().join(&rep));
+        let steps = r["steps"].as_array().unwrap();
+        let ints: Vec<&str> = steps
+            .iter()
+            .map(|s| s["integrator"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            ints[0], "projective",
+            "{arg}: starts with projective dynamics"
+        );
+        assert!(stdout(&o).contains("integrator: projective dynamics"));
+        let switches: Vec<usize> = (0..steps.len())
+            .filter(|&k| !steps[k]["integrator_switch"].is_null())
+            .collect();
+        if arg == "projective" {
+            assert!(ints.iter().all(|&i| i == "projective"));
+            assert!(switches.is_empty());
+        } else {
+            // Each switch is where the integrator changes, and only there.
+            for k in 1..steps.len() {
+                assert_eq!(switches.contains(&k), ints[k] != ints[k - 1], "step {k}");
+            }
+            // With a 3-step stall this scene stalls under projective dynamics (step 19).
+            let k = *switches.first().expect("the adaptive integrator switched");
+            assert_eq!(steps[k]["integrator_switch"], "stalled");
+            assert_eq!(ints[k], "baraff_witkin");
+            assert!(stdout(&o).contains(&format!("Stalled at step {k}")));
+        }
+    }
+    // The default runs Baraff & Witkin throughout and prints no integrator line.
+    let o = untangle(
+        &[
+            "fix",
+            "ex.obj",
+            "-o",
+            "bw.obj",
+            "--max-steps",
+            "3",
+            "--json",
+            "bw.json",
+        ],
+        d.path(),
+    );
+    assert!(matches!(o.status.code(), Some(0) | Some(1)));
+    assert!(!stdout(&o).contains("integrator:"));
+    let r = json(&d.path().join("bw.json"));
+    for s in r["steps"].as_array().unwrap() {
+        assert_eq!(s["integrator"], "baraff_witkin");
+    }
+}

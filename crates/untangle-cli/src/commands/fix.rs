@@ -16,7 +16,10 @@ use std::path::{Path, PathBuf};
 use untangle::analysis::{self, report::Report, Analysis, AnalysisMesh, ObjectKind};
 use untangle::geom::Vec3;
 use untangle::mesh::{obj, Garment, Mesh};
-use untangle::methods::cha_ko::{LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver};
+use untangle::methods::cha_ko::{
+    AdaptiveIntegrator, LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver,
+};
+use untangle::sim::Integrator;
 
 /// Resolution methods.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -112,6 +115,27 @@ pub struct Args {
     /// seeds with the same 98 / 100 resolved (docs/cha-ko.md, "Revoke rate").
     #[arg(long, default_value_t = 1)]
     pub revoke_levels: u32,
+    /// The loop's time integrator: `baraff-witkin` (the default: resolves the most),
+    /// `projective` (projective dynamics: about twice the steps per second, resolves fewer
+    /// tangles; BENCHMARKS.md) or `adaptive` (projective dynamics, Baraff & Witkin from the
+    /// first stall of `--adaptive-stall` steps on).
+    #[arg(long, value_enum, default_value_t = LoopIntegrator::BaraffWitkin)]
+    pub integrator: LoopIntegrator,
+    /// With `--integrator adaptive`: stalled steps (intersecting, no new lowest count of
+    /// intersecting pairs) after which Baraff & Witkin takes over.
+    #[arg(long, default_value_t = AdaptiveIntegrator::default().stall_steps)]
+    pub adaptive_stall: usize,
+}
+
+/// `fix --integrator` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoopIntegrator {
+    /// Baraff & Witkin 1998 throughout.
+    BaraffWitkin,
+    /// Projective dynamics (Bouaziz et al. 2014) throughout, with the loop's CG cap.
+    Projective,
+    /// Projective dynamics, Baraff & Witkin after a stall (`ResolveParams::adaptive`).
+    Adaptive,
 }
 
 impl Args {
@@ -130,6 +154,16 @@ impl Args {
         p.regionless_after = self.regionless_after;
         p.cha_ko.revoke_levels_per_step = self.revoke_levels;
         p.analysis.bli_regions_red = !self.no_bli_regions;
+        match self.integrator {
+            LoopIntegrator::BaraffWitkin => p.sim.integrator = Integrator::BaraffWitkin,
+            LoopIntegrator::Projective => p.sim.integrator = Integrator::Projective,
+            LoopIntegrator::Adaptive => {
+                p.adaptive = Some(AdaptiveIntegrator {
+                    stall_steps: self.adaptive_stall,
+                    ..AdaptiveIntegrator::default()
+                })
+            }
+        }
         p
     }
 }
@@ -388,11 +422,41 @@ fn step_json(s: &LoopStep) -> serde_json::Value {
         "restored": s.uv.restored,
         "active_ops": s.uv.active_ops,
         "analysis_error": s.analysis_error,
+        "integrator": s.integrator,
+        "integrator_switch": s.integrator_switch,
         "ms": step_ms(s),
         "ms_analysis": s.ms_analysis,
         "ms_uv": s.ms_uv + s.ms_rest,
         "ms_sim": s.ms_sim,
     })
+}
+
+/// The summary's integrator line, when a step ran projective dynamics: how many steps each
+/// integrator took and where the adaptive integrator switched (`None` for the default, Baraff &
+/// Witkin throughout).
+fn integrator_line(history: &[LoopStep]) -> Option<String> {
+    let pd = history
+        .iter()
+        .filter(|h| h.integrator == Integrator::Projective)
+        .count();
+    if pd == 0 {
+        return None;
+    }
+    let mut line = format!(
+        "integrator: projective dynamics {pd} steps, Baraff & Witkin {} steps",
+        history.len() - pd
+    );
+    let switches: Vec<String> = history
+        .iter()
+        .filter_map(|h| {
+            h.integrator_switch
+                .map(|w| format!("{w:?} at step {}", h.step))
+        })
+        .collect();
+    if !switches.is_empty() {
+        line.push_str(&format!(" (switches: {})", switches.join(", ")));
+    }
+    Some(line)
 }
 
 /// Milliseconds of one step: analysis, uv update, rest-shape update and simulation.
@@ -595,6 +659,9 @@ pub fn text_summary(fix: &FixRun) -> String {
             "  {} administrative quits of the collision handling, {} failed analyses",
             s.administrative_quits, s.analysis_errors
         );
+    }
+    if let Some(line) = integrator_line(&fix.history) {
+        let _ = writeln!(t, "{line}");
     }
     let total: f64 = fix.history.iter().map(step_ms).sum();
     let _ = writeln!(
