@@ -9,7 +9,10 @@
 //! cargo run --release -p untangle --example cha_ko_trace -- SEED [CELLS] [MAX_STEPS] [REPLAY_AT] [REPLAY_STEPS]
 //! ```
 //!
-//! Env `TRACE_EVERY` (print every n-th step, default 1), `CHAKO_AVOID_LOOP_PULL`, `CHAKO_REVOKE`.
+//! Env `TRACE_EVERY` (print every n-th step, default 1), `CHAKO_AVOID_LOOP_PULL`, `CHAKO_REVOKE`,
+//! and the integrator settings of `common::loop_params` (`UNTANGLE_INTEGRATOR=pd|adaptive`, ...).
+
+mod common;
 
 use untangle::analysis::{analyze_with, AnalysisMesh};
 use untangle::geom::Vec3;
@@ -89,6 +92,7 @@ fn main() {
     if let Ok(v) = std::env::var("CHAKO_ZONE_SOFT") {
         p.sim.zone_motion.soft_levels = v.parse().expect("a number");
     }
+    common::loop_params(&mut p);
     let mut r = Resolver::new(&g, p.clone()).expect("resolver");
     println!("step pairs red | KE Es | cg it conv | springs prox imp zones zv stall | edge max mean | ops n wmax rest | L_end KE_end");
     let mut snapshot = None;
