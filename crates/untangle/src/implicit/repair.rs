@@ -727,6 +727,8 @@ fn settle(
     let mut bvh = Bvh::build(&boxes);
     // The triangles moving in the current round.
     let mut moving_now = vec![false; tris.len()];
+    // The triangles queried by the current check (put-back checks).
+    let mut checked_now = vec![false; tris.len()];
     // Slot of every mover in `boxes` (dense: one lookup per moving triangle per round).
     let mut slot_of = vec![u32::MAX; tris.len()];
     for (i, &t) in movers.iter().enumerate() {
@@ -825,6 +827,12 @@ fn settle(
                 // back: one query each.
                 let check = std::mem::take(&mut refresh);
                 first = false;
+                // A pair of two checked triangles is tested from the higher one's query only
+                // (both queries find it: the boxes are current and overlap is symmetric).
+                for &t in &check {
+                    checked_now[t as usize] = true;
+                }
+                let checked_ro = &checked_now;
                 pairs = check
                     .par_iter()
                     .with_min_len(32)
@@ -842,13 +850,16 @@ fn settle(
                         }
                         bvh.query(&bbox, |i| {
                             let b = movers[i as usize];
-                            if b != a && new_pair(a, b) {
+                            if b != a && !(b < a && checked_ro[b as usize]) && new_pair(a, b) {
                                 out.push(order(a, b));
                             }
                         });
                         out
                     })
                     .collect();
+                for &t in &check {
+                    checked_now[t as usize] = false;
+                }
             }
             pairs.sort_unstable();
             pairs.dedup();

@@ -93,7 +93,15 @@ impl Topology {
                 half.push((((lo as u64) << 32) | hi as u64, (t as u32) * 3 + k as u32));
             }
         }
-        half.sort_unstable();
+        // By edge, then half-edge: the half-edges are pushed in increasing order, so a stable
+        // sort by `(low, high)` (two counting sorts, linear) gives the order of sorting the
+        // whole tuples.
+        crate::radix::sort_by_bucket_then_key(
+            &mut half,
+            (num_vertices, num_vertices),
+            |h| (h.0 >> 32) as u32,
+            |h| h.0 as u32,
+        );
         let mut edges = Vec::with_capacity(half.len() / 2 + 8);
         let mut edge_triangles = Vec::with_capacity(half.len() / 2 + 8);
         let mut triangle_edges = vec![[0u32; 3]; triangles.len()];
@@ -153,7 +161,14 @@ impl Topology {
             incid.push((e[0], e[1], i as u32));
             incid.push((e[1], e[0], i as u32));
         }
-        incid.sort_unstable();
+        // Every (vertex, neighbour) pair appears once (edges are unique): sorting by it alone
+        // (stable counting sorts) gives the order of sorting the whole triples.
+        crate::radix::sort_by_bucket_then_key(
+            &mut incid,
+            (num_vertices, num_vertices),
+            |x| x.0,
+            |x| x.1,
+        );
         let vertex_neighbors = Csr::from_pairs(num_vertices, incid.iter().map(|x| (x.0, x.1)));
         let vertex_edges = Csr::from_pairs(num_vertices, incid.iter().map(|x| (x.0, x.2)));
         let mut boundary_vertex = vec![false; num_vertices];
@@ -258,6 +273,95 @@ mod tests {
                 let (a, b) = (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]));
                 assert_eq!(e, [a, b]);
             }
+        }
+    }
+
+    /// The topology by maps and comparison sorts (the oracle of the counting sorts).
+    fn brute_force(tris: &[[u32; 3]], nv: usize) -> Topology {
+        use std::collections::BTreeMap;
+        let mut by_edge: BTreeMap<[u32; 2], Vec<u32>> = BTreeMap::new();
+        for (t, tri) in tris.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                let h = (t * 3 + k) as u32;
+                by_edge.entry([a.min(b), a.max(b)]).or_default().push(h);
+            }
+        }
+        let mut topo = Topology {
+            num_vertices: nv,
+            triangle_edges: vec![[0; 3]; tris.len()],
+            boundary_vertex: vec![false; nv],
+            ..Topology::default()
+        };
+        let mut rings: Vec<Vec<(u32, u32)>> = vec![Vec::new(); nv];
+        for (e, (key, hs)) in by_edge.iter().enumerate() {
+            topo.edges.push(*key);
+            let second = hs.get(1).map_or(NONE, |h| h / 3);
+            topo.edge_triangles.push([hs[0] / 3, second]);
+            for h in hs {
+                topo.triangle_edges[(h / 3) as usize][(h % 3) as usize] = e as u32;
+            }
+            if second == NONE {
+                topo.boundary_vertex[key[0] as usize] = true;
+                topo.boundary_vertex[key[1] as usize] = true;
+            }
+            rings[key[0] as usize].push((key[1], e as u32));
+            rings[key[1] as usize].push((key[0], e as u32));
+        }
+        let csr = |rows: Vec<Vec<u32>>| {
+            let mut c = Csr {
+                offsets: vec![0],
+                items: Vec::new(),
+            };
+            for r in rows {
+                c.items.extend(r);
+                c.offsets.push(c.items.len() as u32);
+            }
+            c
+        };
+        let mut around: Vec<Vec<u32>> = vec![Vec::new(); nv];
+        for (t, tri) in tris.iter().enumerate() {
+            for &v in tri {
+                around[v as usize].push(t as u32);
+            }
+        }
+        topo.vertex_triangles = csr(around);
+        for r in &mut rings {
+            r.sort();
+        }
+        topo.vertex_neighbors = csr(rings
+            .iter()
+            .map(|r| r.iter().map(|x| x.0).collect())
+            .collect());
+        topo.vertex_edges = csr(rings
+            .iter()
+            .map(|r| r.iter().map(|x| x.1).collect())
+            .collect());
+        topo
+    }
+
+    proptest::proptest! {
+        /// A grid with shuffled vertex numbers and triangle order (plus unused vertices): the
+        /// same topology as the brute force.
+        #[test]
+        fn matches_the_brute_force(w in 1usize..14, h in 1usize..14, extra in 0usize..5, seed in 0u64..1000) {
+            use rand::seq::SliceRandom;
+            use rand::SeedableRng;
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let nv = (w + 1) * (h + 1) + extra;
+            let mut perm: Vec<u32> = (0..nv as u32).collect();
+            perm.shuffle(&mut rng);
+            let id = |i: usize, j: usize| perm[i * (h + 1) + j];
+            let mut tris = Vec::new();
+            for i in 0..w {
+                for j in 0..h {
+                    tris.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                    tris.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+                }
+            }
+            tris.shuffle(&mut rng);
+            let t = Topology::from_triangles(&tris, nv, |i| i.to_string()).unwrap();
+            proptest::prop_assert_eq!(t, brute_force(&tris, nv));
         }
     }
 
