@@ -168,7 +168,7 @@ fn main() {
             let mut loops: Vec<u32> = a
                 .paths
                 .iter()
-                .flat_map(|p| p.loop_vertices.iter().copied())
+                .flat_map(|p| p.loop_vertices().iter().copied())
                 .collect();
             loops.sort_unstable();
             println!(

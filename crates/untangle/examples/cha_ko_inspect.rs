@@ -46,8 +46,8 @@ fn main() {
                 println!(
                     "path {:?} loops {:?} cut edges {} region {region}",
                     path.kind,
-                    path.loop_vertices,
-                    path.cut_edges.len()
+                    path.loop_vertices(),
+                    path.cut_edges().len()
                 );
             }
             for cr in &a.crossings {

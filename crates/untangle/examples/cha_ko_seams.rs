@@ -135,7 +135,7 @@ fn main() {
             .fold(
                 std::collections::BTreeMap::<&str, usize>::new(),
                 |mut m, t| {
-                    *m.entry(t.kind.as_str()).or_default() += 1;
+                    *m.entry(t.kind).or_default() += 1;
                     m
                 },
             )

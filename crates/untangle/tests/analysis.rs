@@ -168,7 +168,7 @@ fn rudimentary_scenes_yield_exactly_their_kind() {
         assert_eq!(a.paths[0].kind, pk);
         assert_eq!(a.paths[0].corresponds_to, 0, "{kind} corresponds to itself");
         let lv = if kind == "LL" { 2 } else { 1 };
-        assert_eq!(a.paths[0].loop_vertices.len(), lv);
+        assert_eq!(a.paths[0].loop_vertices().len(), lv);
     }
     // EIGHT and CROSS keep their origin on the split paths.
     let (_, _, a) = analyse_checked(&rudimentary::eight(1).meshes);
@@ -476,13 +476,13 @@ fn bli_paths_with_a_boundary_loop_vertex_get_the_smaller_side() {
         let p = &a.paths[0];
         assert_eq!(p.kind, PathKind::BoundaryLoopInside);
         assert!(p
-            .loop_vertices
+            .loop_vertices()
             .iter()
             .all(|&v| am.topology.boundary_vertex[v as usize]));
         let Region::Inside(inside) = &a.regions[0] else {
             panic!("level {lv}: region expected, got {:?}", a.regions[0]);
         };
-        let mut comps = components(&am, &p.loop_vertices, &p.cut_edges);
+        let mut comps = components(&am, p.loop_vertices(), p.cut_edges());
         assert_eq!(comps.len(), 2, "level {lv}: the boundary half separates");
         comps.sort_by_key(|c| c.len());
         assert_eq!(inside, &comps[0], "level {lv}");
@@ -502,10 +502,10 @@ fn bli_paths_get_a_cone_region_near_their_loop_vertex() {
         let plain = analyze(&am, &pos).unwrap();
         assert_eq!(plain.paths.len(), 1, "level {lv}");
         assert_eq!(plain.paths[0].kind, PathKind::BoundaryLoopInside);
-        assert_eq!(plain.paths[0].loop_vertices, vec![0], "level {lv}");
+        assert_eq!(plain.paths[0].loop_vertices(), vec![0], "level {lv}");
         assert!(!am.topology.boundary_vertex[0]);
         assert_eq!(
-            components(&am, &[0], &plain.paths[0].cut_edges).len(),
+            components(&am, &[0], plain.paths[0].cut_edges()).len(),
             1,
             "level {lv}: an interior BLI separates nothing"
         );
@@ -520,7 +520,7 @@ fn bli_paths_get_a_cone_region_near_their_loop_vertex() {
                 plain.regions[0]
             );
         };
-        let apex = plain.paths[0].loop_vertices[0];
+        let apex = plain.paths[0].loop_vertices()[0];
         assert!(!inside.is_empty() && !inside.contains(&apex));
         // The region is one side of the path: no inside vertex is joined to a disc vertex of
         // the other side except across a cut edge — checked through the definition: every
@@ -529,7 +529,7 @@ fn bli_paths_get_a_cone_region_near_their_loop_vertex() {
             .iter()
             .map(|&v| (pos[v as usize] - pos[apex as usize]).norm())
             .fold(0.0, f64::max);
-        let cut = &plain.paths[0].cut_edges;
+        let cut = plain.paths[0].cut_edges();
         let topo = &am.topology;
         for &v in inside {
             for (&w, &e) in topo
@@ -620,7 +620,7 @@ fn intersection_curves_lie_on_both_sheets_and_are_continuous() {
     let c = &curves[0];
     assert_eq!(
         c.len(),
-        a.paths[0].pieces.len() + 2,
+        a.paths[0].pieces().len() + 2,
         "one point per piece, start repeated"
     );
     assert_eq!(c.first(), c.last());

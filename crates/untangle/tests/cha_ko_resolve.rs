@@ -118,7 +118,7 @@ fn the_regionless_fallback_colours_the_corners_of_the_pinched_fold() {
     let loops: Vec<u32> = a
         .paths
         .iter()
-        .flat_map(|p| p.loop_vertices.clone())
+        .flat_map(|p| p.loop_vertices().to_vec())
         .collect();
     let mut expected = vec![false; g.mesh.positions.len()];
     for t in a.intersecting_triangles() {

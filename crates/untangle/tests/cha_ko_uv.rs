@@ -1140,7 +1140,7 @@ fn red_star_triangles_are_not_shrunk_toward_a_loop_vertex() {
     let loops: Vec<u32> = a
         .paths
         .iter()
-        .flat_map(|p| p.loop_vertices.clone())
+        .flat_map(|p| p.loop_vertices().to_vec())
         .collect();
     assert!(!loops.is_empty());
     let topo = &g.topology;
@@ -1517,7 +1517,7 @@ fn the_cut_edge_rule_changes_nothing_on_the_papers_coloring() {
         let loops: Vec<u32> = a
             .paths
             .iter()
-            .flat_map(|p| p.loop_vertices.iter().copied())
+            .flat_map(|p| p.loop_vertices().iter().copied())
             .collect();
         let col = &a.coloring;
         for &x in &col.outmost_red {

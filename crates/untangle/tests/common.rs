@@ -33,7 +33,7 @@ pub fn run(meshes: &[Mesh]) -> (AnalysisMesh, Vec<untangle::geom::Vec3>, Analysi
 pub fn kinds(a: &Analysis) -> Vec<(String, usize)> {
     let mut m = std::collections::BTreeMap::new();
     for t in &a.tanglements {
-        *m.entry(t.kind.clone()).or_insert(0) += 1;
+        *m.entry(t.kind.to_string()).or_insert(0) += 1;
     }
     m.into_iter().collect()
 }
@@ -129,11 +129,11 @@ pub fn check_consistency(am: &AnalysisMesh, a: &Analysis) {
     // Paths: every piece exactly once, consecutive pieces adjacent, ends and correspondence.
     let mut seen = vec![0u32; a.segments.len() * 2];
     for (i, p) in a.paths.iter().enumerate() {
-        for &pc in &p.pieces {
+        for &pc in p.pieces() {
             seen[pc as usize] += 1;
         }
         let tri = |pc: u32| a.segments[(pc / 2) as usize].triangles[(pc % 2) as usize];
-        for w in p.pieces.windows(2) {
+        for w in p.pieces().windows(2) {
             let (t0, t1) = (tri(w[0]), tri(w[1]));
             let shares_edge = t0 == t1 || {
                 let (x, y) = (am.triangles[t0 as usize], am.triangles[t1 as usize]);

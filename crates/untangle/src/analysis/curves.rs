@@ -34,9 +34,9 @@ pub fn tanglement_curves(mesh: &AnalysisMesh, pos: &[Vec3], a: &Analysis) -> Vec
         .iter()
         .map(|t| {
             let path = &a.paths[t.paths[0] as usize];
-            let mut pts: Vec<Vec3> = Vec::with_capacity(path.pieces.len() + 1);
+            let mut pts: Vec<Vec3> = Vec::with_capacity(path.pieces().len() + 1);
             let mut last_end: Option<End> = None;
-            for (k, &piece) in path.pieces.iter().enumerate() {
+            for (k, &piece) in path.pieces().iter().enumerate() {
                 let seg = &a.segments[(piece / 2) as usize];
                 // Orient the segment so that it starts where the previous piece ended.
                 let (e0, e1) = match last_end {
@@ -45,7 +45,7 @@ pub fn tanglement_curves(mesh: &AnalysisMesh, pos: &[Vec3], a: &Analysis) -> Vec
                     None => {
                         // First piece: start at the end not shared with the next piece.
                         let next = path
-                            .pieces
+                            .pieces()
                             .get(k + 1)
                             .map(|&n| a.segments[(n / 2) as usize].ends);
                         match next {

@@ -123,28 +123,148 @@ pub fn partner(piece: u32) -> u32 {
 }
 
 /// A parameter-space intersection path.
-#[derive(Clone, Debug, PartialEq)]
+///
+/// Its three index lists (pieces, cut edges, loop vertices) share one allocation (an analysis
+/// of a dense tangle has thousands of paths; one heap block each instead of three); read them
+/// with [`Path::pieces`], [`Path::cut_edges`] and [`Path::loop_vertices`].
+#[derive(Clone, PartialEq)]
 pub struct Path {
     /// Kind after splitting (never EIGHT or CROSS).
     pub kind: PathKind,
     /// EIGHT or CROSS when this path came from splitting one.
     pub split_from: Option<PathKind>,
-    /// Pieces in order along the path.
-    pub pieces: Vec<u32>,
     /// Whether the path is closed.
     pub closed: bool,
     /// End kinds of an open path (first piece's end, last piece's end).
     pub ends: Option<[EndKind; 2]>,
-    /// Distinct loop vertices on the path.
-    pub loop_vertices: Vec<u32>,
     /// Index of the corresponding path (itself for LL and BLI).
     pub corresponds_to: u32,
     /// Index of the tanglement this path belongs to.
     pub tanglement: u32,
     /// Object whose parameter space holds the path.
     pub object: u32,
-    /// Edges the path passes across an odd number of times (the cut of a partitioning path).
-    pub cut_edges: Vec<u32>,
+    /// The pieces, then the cut edges, then the loop vertices.
+    lists: Vec<u32>,
+    /// Where the cut edges and the loop vertices start in `lists`.
+    starts: [u32; 2],
+}
+
+impl Path {
+    /// A path with the given lists (`cut_edges` ascending, `loop_vertices` ascending and
+    /// distinct); `corresponds_to` and `tanglement` are set later.
+    fn new(
+        (kind, split_from): (PathKind, Option<PathKind>),
+        (closed, ends): (bool, Option<[EndKind; 2]>),
+        pieces: impl ExactSizeIterator<Item = u32>,
+        cut_edges: &[u32],
+        loop_vertices: &[u32],
+        object: u32,
+    ) -> Path {
+        let mut lists = Vec::with_capacity(pieces.len() + cut_edges.len() + loop_vertices.len());
+        lists.extend(pieces);
+        let cut_start = lists.len() as u32;
+        lists.extend_from_slice(cut_edges);
+        let loop_start = lists.len() as u32;
+        lists.extend_from_slice(loop_vertices);
+        Path {
+            kind,
+            split_from,
+            closed,
+            ends,
+            corresponds_to: u32::MAX,
+            tanglement: u32::MAX,
+            object,
+            lists,
+            starts: [cut_start, loop_start],
+        }
+    }
+
+    /// Pieces in order along the path.
+    #[inline]
+    pub fn pieces(&self) -> &[u32] {
+        &self.lists[..self.starts[0] as usize]
+    }
+
+    /// Edges the path passes across an odd number of times (the cut of a partitioning path),
+    /// ascending.
+    #[inline]
+    pub fn cut_edges(&self) -> &[u32] {
+        &self.lists[self.starts[0] as usize..self.starts[1] as usize]
+    }
+
+    /// Distinct loop vertices on the path, ascending.
+    #[inline]
+    pub fn loop_vertices(&self) -> &[u32] {
+        &self.lists[self.starts[1] as usize..]
+    }
+}
+
+/// The fields in declaration order of the public view (as a derived `Debug` of a struct with
+/// `pieces`, `loop_vertices` and `cut_edges` fields would print them).
+impl std::fmt::Debug for Path {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Path")
+            .field("kind", &self.kind)
+            .field("split_from", &self.split_from)
+            .field("pieces", &self.pieces())
+            .field("closed", &self.closed)
+            .field("ends", &self.ends)
+            .field("loop_vertices", &self.loop_vertices())
+            .field("corresponds_to", &self.corresponds_to)
+            .field("tanglement", &self.tanglement)
+            .field("object", &self.object)
+            .field("cut_edges", &self.cut_edges())
+            .finish()
+    }
+}
+
+/// The one or two paths of a tanglement, stored inline (no heap block per tanglement); a slice
+/// by [`std::ops::Deref`].
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct TanglementPaths {
+    ids: [u32; 2],
+    len: u8,
+}
+
+impl TanglementPaths {
+    /// One path.
+    pub fn one(a: u32) -> Self {
+        TanglementPaths {
+            ids: [a, u32::MAX],
+            len: 1,
+        }
+    }
+
+    /// Two corresponding paths.
+    pub fn two(a: u32, b: u32) -> Self {
+        TanglementPaths {
+            ids: [a, b],
+            len: 2,
+        }
+    }
+}
+
+impl std::ops::Deref for TanglementPaths {
+    type Target = [u32];
+    #[inline]
+    fn deref(&self) -> &[u32] {
+        &self.ids[..self.len as usize]
+    }
+}
+
+impl<'a> IntoIterator for &'a TanglementPaths {
+    type Item = &'a u32;
+    type IntoIter = std::slice::Iter<'a, u32>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.iter()
+    }
+}
+
+/// As a list (like the slice it derefs to).
+impl std::fmt::Debug for TanglementPaths {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.iter()).finish()
+    }
 }
 
 /// A tanglement: one intersection curve in world space with its parameter-space paths; its kind
@@ -152,9 +272,9 @@ pub struct Path {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Tanglement {
     /// Category, e.g. `"BBII"`.
-    pub kind: String,
+    pub kind: &'static str,
     /// Its paths.
-    pub paths: Vec<u32>,
+    pub paths: TanglementPaths,
     /// The objects involved (the same object twice for a self-intersection).
     pub objects: [u32; 2],
     /// Loop vertices involved.
@@ -336,15 +456,16 @@ fn walk_chains(links: &mut [[u32; 2]], segs: &Segments) -> (Vec<Chain>, Vec<(u32
     (chains, all_steps)
 }
 
-/// The edges crossed an odd number of times between the pieces of `steps`; when the sub-path
-/// starts or ends with a `B` end, that boundary edge counts too. `across` is per piece end the
+/// Appends to `out` the edges crossed an odd number of times between the pieces of `steps`,
+/// ascending; when the sub-path starts or ends with a `B` end, that boundary edge counts too. `across` is per piece end the
 /// edge passed across there (from [`link_pieces`]).
 fn cut_of(
     across: &[[u32; 2]],
     steps: &[(u32, u8)],
     (closed, b_start, b_end): (bool, bool, bool),
     odd: &mut OddEdges,
-) -> Vec<u32> {
+    out: &mut Vec<u32>,
+) {
     let count = steps.len();
     let transitions = if closed {
         count
@@ -368,7 +489,7 @@ fn cut_of(
         let (p, e) = steps[count - 1];
         push(p, 1 - e);
     }
-    odd.take()
+    odd.take_into(out)
 }
 
 /// The edges seen an odd number of times, sorted, without sorting the sequence: a parity bit
@@ -395,13 +516,23 @@ impl OddEdges {
         self.seen.push(e);
     }
 
-    /// The edges toggled an odd number of times since the last call, ascending; clears.
+    /// The edges toggled an odd number of times since the last call, ascending.
+    #[cfg(test)]
     fn take(&mut self) -> Vec<u32> {
+        let mut out = Vec::new();
+        self.take_into(&mut out);
+        out
+    }
+
+    /// Appends the edges toggled an odd number of times since the last call to `out`,
+    /// ascending; clears.
+    fn take_into(&mut self, out: &mut Vec<u32>) {
         let (Some(&lo), Some(&hi)) = (self.seen.iter().min(), self.seen.iter().max()) else {
-            return Vec::new();
+            return;
         };
         let (w0, w1) = ((lo / 64) as usize, (hi / 64) as usize);
-        let mut out = Vec::with_capacity(self.seen.len());
+        let first = out.len();
+        out.reserve(self.seen.len());
         if w1 - w0 < 4 * self.seen.len() + 8 {
             for (w, word) in self.parity[w0..=w1].iter_mut().enumerate() {
                 let mut x = std::mem::take(word);
@@ -419,10 +550,9 @@ impl OddEdges {
                     out.push(e);
                 }
             }
-            out.sort_unstable();
+            out[first..].sort_unstable();
         }
         self.seen.clear();
-        out
     }
 }
 
@@ -490,31 +620,29 @@ pub fn trace_paths(
 
     let mut path_of_piece = vec![u32::MAX; links.len()];
     let mut make_path = |paths: &mut Vec<Path>,
-                         kind: PathKind,
-                         split_from: Option<PathKind>,
+                         kinds: (PathKind, Option<PathKind>),
                          steps: &[(u32, u8)],
-                         closed: bool,
-                         ends: Option<[EndKind; 2]>,
-                         loop_vertices: Vec<u32>,
-                         cut_edges: Vec<u32>| {
+                         shape: (bool, Option<[EndKind; 2]>),
+                         loop_vertices: &[u32],
+                         cut_edges: &[u32]| {
         let idx = paths.len() as u32;
         for &(p, _) in steps {
             path_of_piece[p as usize] = idx;
         }
-        paths.push(Path {
-            kind,
-            split_from,
-            pieces: steps.iter().map(|s| s.0).collect(),
-            closed,
-            ends,
-            loop_vertices,
-            corresponds_to: u32::MAX,
-            tanglement: u32::MAX,
-            object: object_of_piece(steps[0].0),
+        paths.push(Path::new(
+            kinds,
+            shape,
+            steps.iter().map(|s| s.0),
             cut_edges,
-        });
+            loop_vertices,
+            object_of_piece(steps[0].0),
+        ));
         idx
     };
+    // Reused buffers for a path's cut edges and loop vertices (copied into the path).
+    let mut cut: Vec<u32> = Vec::new();
+    let mut lv: Vec<u32> = Vec::new();
+    let mut wrapped: Vec<(u32, u8)> = Vec::new();
 
     let mut tanglement_kind_of_path: Vec<Option<&'static str>> =
         Vec::with_capacity(paths.capacity());
@@ -523,19 +651,20 @@ pub fn trace_paths(
             Class::Plain(kind) => {
                 let b0 = ch.ends.map(|e| e[0] == EndKind::Boundary).unwrap_or(false);
                 let b1 = ch.ends.map(|e| e[1] == EndKind::Boundary).unwrap_or(false);
-                let cut = cut_of(&across, steps_of(ch), (ch.closed, b0, b1), &mut scratch);
-                let mut lv: Vec<u32> = ch.turns.iter().map(|t| t.1).collect();
+                cut.clear();
+                let flags = (ch.closed, b0, b1);
+                cut_of(&across, steps_of(ch), flags, &mut scratch, &mut cut);
+                lv.clear();
+                lv.extend(ch.turns.iter().map(|t| t.1));
                 lv.sort_unstable();
                 lv.dedup();
                 make_path(
                     &mut paths,
-                    kind,
-                    None,
+                    (kind, None),
                     steps_of(ch),
-                    ch.closed,
-                    ch.ends,
-                    lv,
-                    cut,
+                    (ch.closed, ch.ends),
+                    &lv,
+                    &cut,
                 );
                 tanglement_kind_of_path.push(None);
             }
@@ -543,20 +672,20 @@ pub fn trace_paths(
                 let (i, j) = (ch.turns[0].0, ch.turns[1].0);
                 let v = ch.turns[0].1;
                 let steps = steps_of(ch);
-                let lobe1: Vec<(u32, u8)> = steps[i + 1..=j].to_vec();
-                let mut lobe2: Vec<(u32, u8)> = steps[j + 1..].to_vec();
-                lobe2.extend_from_slice(&steps[..=i]);
-                for lobe in [lobe1, lobe2] {
-                    let cut = cut_of(&across, &lobe, (true, false, false), &mut scratch);
+                // The first lobe is a run of the chain; the second wraps around its start.
+                wrapped.clear();
+                wrapped.extend_from_slice(&steps[j + 1..]);
+                wrapped.extend_from_slice(&steps[..=i]);
+                for lobe in [&steps[i + 1..=j], &wrapped[..]] {
+                    cut.clear();
+                    cut_of(&across, lobe, (true, false, false), &mut scratch, &mut cut);
                     make_path(
                         &mut paths,
-                        PathKind::Closed,
-                        Some(PathKind::Eight),
-                        &lobe,
-                        true,
-                        None,
-                        vec![v],
-                        cut,
+                        (PathKind::Closed, Some(PathKind::Eight)),
+                        lobe,
+                        (true, None),
+                        &[v],
+                        &cut,
                     );
                     tanglement_kind_of_path.push(Some("EIGHT"));
                 }
@@ -565,7 +694,8 @@ pub fn trace_paths(
                 let other = cross_partner[ci];
                 if other == usize::MAX {
                     let ends = ch.ends.expect("open");
-                    let cut = cut_of(
+                    cut.clear();
+                    cut_of(
                         &across,
                         steps_of(ch),
                         (
@@ -574,16 +704,15 @@ pub fn trace_paths(
                             ends[1] == EndKind::Boundary,
                         ),
                         &mut scratch,
+                        &mut cut,
                     );
                     make_path(
                         &mut paths,
-                        PathKind::BoundaryLoopInside,
-                        None,
+                        (PathKind::BoundaryLoopInside, None),
                         steps_of(ch),
-                        false,
-                        ch.ends,
-                        vec![ch.turns[0].1],
-                        cut,
+                        (false, ch.ends),
+                        &[ch.turns[0].1],
+                        &cut,
                     );
                     tanglement_kind_of_path.push(None);
                     continue;
@@ -615,11 +744,12 @@ pub fn trace_paths(
                     let mut steps = a.0.clone();
                     steps.extend(b.0.iter().rev().map(|&(p, e)| (p, 1 - e)));
                     let is_b = kind == EndKind::Boundary;
-                    let mut cut = cut_of(&across, &a.0, (false, is_b, false), &mut scratch);
-                    cut.extend(cut_of(&across, &b.0, (false, is_b, false), &mut scratch));
+                    cut.clear();
+                    cut_of(&across, &a.0, (false, is_b, false), &mut scratch, &mut cut);
+                    cut_of(&across, &b.0, (false, is_b, false), &mut scratch, &mut cut);
                     cut.sort_unstable();
                     let mut odd = Vec::new();
-                    for e in cut {
+                    for &e in &cut {
                         if odd.last() == Some(&e) {
                             odd.pop();
                         } else {
@@ -633,13 +763,11 @@ pub fn trace_paths(
                     };
                     make_path(
                         &mut paths,
-                        pk,
-                        Some(PathKind::Cross),
+                        (pk, Some(PathKind::Cross)),
                         &steps,
-                        false,
-                        Some([kind, kind]),
-                        vec![v],
-                        odd,
+                        (false, Some([kind, kind])),
+                        &[v],
+                        &odd,
                     );
                     tanglement_kind_of_path.push(Some("CROSS"));
                 }
@@ -650,7 +778,7 @@ pub fn trace_paths(
     // Correspondence and tanglements.
     let mut tanglements: Vec<Tanglement> = Vec::with_capacity(paths.len());
     for i in 0..paths.len() {
-        let first = paths[i].pieces[0];
+        let first = paths[i].pieces()[0];
         paths[i].corresponds_to = path_of_piece[partner(first) as usize];
     }
     for i in 0..paths.len() {
@@ -658,18 +786,18 @@ pub fn trace_paths(
             continue;
         }
         let j = paths[i].corresponds_to as usize;
-        let members: Vec<u32> = if j == i || j >= paths.len() {
-            vec![i as u32]
+        let members = if j == i || j >= paths.len() {
+            TanglementPaths::one(i as u32)
         } else {
-            vec![i as u32, j as u32]
+            TanglementPaths::two(i as u32, j as u32)
         };
         let kind = match tanglement_kind_of_path[i] {
-            Some(k) => k.to_string(),
+            Some(k) => k,
             None => tanglement_kind(&paths[i], members.get(1).map(|&m| &paths[m as usize])),
         };
         let mut lv: Vec<u32> = members
             .iter()
-            .flat_map(|&m| paths[m as usize].loop_vertices.clone())
+            .flat_map(|&m| paths[m as usize].loop_vertices().iter().copied())
             .collect();
         lv.sort_unstable();
         lv.dedup();
@@ -678,7 +806,7 @@ pub fn trace_paths(
             paths[*members.last().expect("non-empty") as usize].object,
         ];
         let t = tanglements.len() as u32;
-        for &m in &members {
+        for &m in members.iter() {
             paths[m as usize].tanglement = t;
         }
         tanglements.push(Tanglement {
@@ -691,24 +819,66 @@ pub fn trace_paths(
     Ok((paths, tanglements))
 }
 
-fn tanglement_kind(p: &Path, q: Option<&Path>) -> String {
+fn tanglement_kind(p: &Path, q: Option<&Path>) -> &'static str {
     use PathKind::*;
     match (p.kind, q.map(|q| q.kind)) {
-        (Closed, _) => "CLOSED".into(),
-        (LoopLoop, _) => "LL".into(),
-        (BoundaryLoopInside, _) => "BLI".into(),
-        (BoundaryLoopBoundary, _) => "BLB".into(),
-        (BoundaryLoopLoopBoundary, _) => "BLLB".into(),
+        (Closed, _) => "CLOSED",
+        (LoopLoop, _) => "LL",
+        (BoundaryLoopInside, _) => "BLI",
+        (BoundaryLoopBoundary, _) => "BLB",
+        (BoundaryLoopLoopBoundary, _) => "BLLB",
         (a, Some(b)) => {
-            let mut names = [a.name(), b.name()];
-            names.sort_by_key(|n| match *n {
-                "BB" => 0,
-                "BI" => 1,
+            let mut kinds = [a, b];
+            kinds.sort_by_key(|k| match k {
+                BoundaryBoundary => 0,
+                BoundaryInside => 1,
                 _ => 2,
             });
-            format!("{}{}", names[0], names[1])
+            pair_name(kinds[0], kinds[1])
         }
-        (a, None) => a.name().into(),
+        (a, None) => a.name(),
+    }
+}
+
+/// All kinds, in declaration order (`kind as usize` indexes it).
+const ALL_KINDS: [PathKind; 10] = [
+    PathKind::Closed,
+    PathKind::Eight,
+    PathKind::LoopLoop,
+    PathKind::BoundaryLoopInside,
+    PathKind::BoundaryLoopBoundary,
+    PathKind::BoundaryLoopLoopBoundary,
+    PathKind::Cross,
+    PathKind::BoundaryBoundary,
+    PathKind::BoundaryInside,
+    PathKind::InsideInside,
+];
+
+/// The two names one after the other (`"BBII"`): the usual pairs spelled out, every other
+/// pair from a table built once (no allocation per tanglement).
+fn pair_name(a: PathKind, b: PathKind) -> &'static str {
+    use PathKind::*;
+    match (a, b) {
+        (BoundaryBoundary, InsideInside) => "BBII",
+        (BoundaryInside, BoundaryInside) => "BIBI",
+        (BoundaryBoundary, BoundaryBoundary) => "BBBB",
+        (BoundaryBoundary, BoundaryInside) => "BBBI",
+        (BoundaryInside, InsideInside) => "BIII",
+        (InsideInside, InsideInside) => "IIII",
+        _ => {
+            static TABLE: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+            let table = TABLE.get_or_init(|| {
+                ALL_KINDS
+                    .iter()
+                    .flat_map(|x| {
+                        ALL_KINDS
+                            .iter()
+                            .map(move |y| format!("{}{}", x.name(), y.name()))
+                    })
+                    .collect()
+            });
+            &table[a as usize * ALL_KINDS.len() + b as usize]
+        }
     }
 }
 
@@ -716,6 +886,87 @@ fn tanglement_kind(p: &Path, q: Option<&Path>) -> String {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// The layout `Path` had with three vectors (the oracle for the accessors and `Debug`).
+    mod three_vectors {
+        use super::super::{EndKind, PathKind};
+        #[derive(Debug)]
+        #[allow(dead_code)] // read through `Debug` only
+        pub struct Path {
+            pub kind: PathKind,
+            pub split_from: Option<PathKind>,
+            pub pieces: Vec<u32>,
+            pub closed: bool,
+            pub ends: Option<[EndKind; 2]>,
+            pub loop_vertices: Vec<u32>,
+            pub corresponds_to: u32,
+            pub tanglement: u32,
+            pub object: u32,
+            pub cut_edges: Vec<u32>,
+        }
+    }
+
+    proptest! {
+        /// The three lists come back as given, and `Debug` prints what a derived `Debug` of
+        /// the three-vector layout printed (plain and pretty).
+        #[test]
+        fn path_lists_and_debug_match_three_vectors(
+            pieces in proptest::collection::vec(0u32..1000, 1..20),
+            cut in proptest::collection::vec(0u32..1000, 0..20),
+            lv in proptest::collection::vec(0u32..1000, 0..3),
+            closed in proptest::bool::ANY,
+            k in 0usize..10,
+        ) {
+            let kind = ALL_KINDS[k];
+            let ends = (!closed).then_some([EndKind::Boundary, EndKind::Inside]);
+            let mut p = Path::new((kind, Some(PathKind::Cross)), (closed, ends), pieces.iter().copied(), &cut, &lv, 3);
+            p.corresponds_to = 7;
+            p.tanglement = 2;
+            prop_assert_eq!(p.pieces(), &pieces[..]);
+            prop_assert_eq!(p.cut_edges(), &cut[..]);
+            prop_assert_eq!(p.loop_vertices(), &lv[..]);
+            let old = three_vectors::Path {
+                kind,
+                split_from: Some(PathKind::Cross),
+                pieces: pieces.clone(),
+                closed,
+                ends,
+                loop_vertices: lv.clone(),
+                corresponds_to: 7,
+                tanglement: 2,
+                object: 3,
+                cut_edges: cut.clone(),
+            };
+            prop_assert_eq!(format!("{p:?}"), format!("{old:?}"));
+            prop_assert_eq!(format!("{p:#?}"), format!("{old:#?}"));
+        }
+    }
+
+    /// `ALL_KINDS[k as usize] == k`, and every pair name is the two names one after the other.
+    #[test]
+    fn kind_table_and_pair_names() {
+        for (i, &k) in ALL_KINDS.iter().enumerate() {
+            assert_eq!(k as usize, i);
+        }
+        for &a in &ALL_KINDS {
+            for &b in &ALL_KINDS {
+                assert_eq!(pair_name(a, b), format!("{}{}", a.name(), b.name()));
+            }
+        }
+    }
+
+    /// One or two ids, read as a slice and printed like a vector.
+    #[test]
+    fn tanglement_paths_are_a_short_slice() {
+        let one = TanglementPaths::one(4);
+        let two = TanglementPaths::two(4, 9);
+        assert_eq!(&*one, &[4]);
+        assert_eq!(&*two, &[4, 9]);
+        assert_eq!(format!("{one:?}"), format!("{:?}", vec![4u32]));
+        assert_eq!(format!("{two:?}"), format!("{:?}", vec![4u32, 9]));
+        assert_eq!((&two).into_iter().copied().collect::<Vec<_>>(), vec![4, 9]);
+        assert!(two.contains(&9) && !one.contains(&9));
+    }
 
     proptest! {
         /// The parity bits give the edges seen an odd number of times, sorted (the oracle:

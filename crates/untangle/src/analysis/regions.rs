@@ -57,10 +57,10 @@ impl<'a> RegionFinder<'a> {
     /// splits the disc and the smaller side is inside. Distances are Dijkstra distances along
     /// world-space edges.
     pub fn bli_cone(&mut self, path: &Path, segments: &[Segment], pos: &[Vec3]) -> Region {
-        if path.kind != PathKind::BoundaryLoopInside || path.cut_edges.is_empty() {
+        if path.kind != PathKind::BoundaryLoopInside || path.cut_edges().is_empty() {
             return Region::None;
         }
-        let Some(&apex) = path.loop_vertices.first() else {
+        let Some(&apex) = path.loop_vertices().first() else {
             return Region::None;
         };
         let topo = &self.mesh.topology;
@@ -73,8 +73,8 @@ impl<'a> RegionFinder<'a> {
             self.mesh.triangles[seg.triangles[(piece % 2) as usize] as usize]
         };
         let ends = [
-            end_triangle(path.pieces[0]),
-            end_triangle(*path.pieces.last().expect("non-empty")),
+            end_triangle(path.pieces()[0]),
+            end_triangle(*path.pieces().last().expect("non-empty")),
         ];
         self.roi_stamp += 1;
         let rs = self.roi_stamp;
@@ -124,19 +124,19 @@ impl<'a> RegionFinder<'a> {
         const MAX_SEEDS: usize = 8;
         let topo = &self.mesh.topology;
         if path.kind != PathKind::BoundaryLoopInside
-            || path.cut_edges.is_empty()
+            || path.cut_edges().is_empty()
             || !path
-                .loop_vertices
+                .loop_vertices()
                 .iter()
                 .all(|&v| topo.boundary_vertex[v as usize])
         {
             return Region::NotSeparating;
         }
-        let n = path.cut_edges.len();
+        let n = path.cut_edges().len();
         let stride = n.div_ceil(MAX_SEEDS).max(1);
         for k in (0..n).step_by(stride) {
             let st = self.stamp_cut(path);
-            let [a, b] = topo.edges[path.cut_edges[k] as usize];
+            let [a, b] = topo.edges[path.cut_edges()[k] as usize];
             if self.removed(a, st) || self.removed(b, st) {
                 continue;
             }
@@ -158,12 +158,12 @@ impl<'a> RegionFinder<'a> {
 
     /// Lock-step flood fill from both sides of a cut edge, optionally within a region of interest.
     fn flood(&mut self, path: &Path, roi: Option<u32>) -> Region {
-        if path.cut_edges.is_empty() {
+        if path.cut_edges().is_empty() {
             return Region::None;
         }
         let topo = &self.mesh.topology;
         let st = self.stamp_cut(path);
-        let seed = path.cut_edges.iter().find_map(|&e| {
+        let seed = path.cut_edges().iter().find_map(|&e| {
             let [a, b] = topo.edges[e as usize];
             (!self.removed(a, st) && !self.removed(b, st)).then_some([a, b])
         });
@@ -177,10 +177,10 @@ impl<'a> RegionFinder<'a> {
     fn stamp_cut(&mut self, path: &Path) -> u32 {
         self.stamp += 1;
         let st = self.stamp;
-        for &e in &path.cut_edges {
+        for &e in path.cut_edges() {
             self.edge_stamp[e as usize] = st;
         }
-        for &v in &path.loop_vertices {
+        for &v in path.loop_vertices() {
             self.vertex_stamp[v as usize] = st;
             self.vertex_side[v as usize] = 2;
         }

@@ -123,10 +123,10 @@ impl Report {
     /// Builds the report (`pos`: the positions the analysis ran on).
     pub fn new(mesh: &AnalysisMesh, pos: &[crate::geom::Vec3], a: &Analysis) -> Report {
         let location = |p: &super::Path| -> [f64; 3] {
-            let x = match p.loop_vertices.first() {
+            let x = match p.loop_vertices().first() {
                 Some(&v) => pos[v as usize],
                 None => {
-                    let piece = p.pieces[0];
+                    let piece = p.pieces()[0];
                     let t = a.segments[(piece / 2) as usize].triangles[(piece % 2) as usize];
                     mesh.triangles[t as usize]
                         .iter()
@@ -171,9 +171,9 @@ impl Report {
                 object: p.object,
                 closed: p.closed,
                 ends: p.ends,
-                loop_vertices: p.loop_vertices.clone(),
+                loop_vertices: p.loop_vertices().to_vec(),
                 corresponds_to: p.corresponds_to,
-                segments: p.pieces.len(),
+                segments: p.pieces().len(),
                 tanglement: p.tanglement,
                 inside_vertices: match r {
                     Region::Inside(v) => Some(v.len()),
@@ -189,7 +189,7 @@ impl Report {
         }
         let mut tanglements_by_kind = BTreeMap::new();
         for t in &a.tanglements {
-            *tanglements_by_kind.entry(t.kind.clone()).or_default() += 1;
+            *tanglements_by_kind.entry(t.kind.to_string()).or_default() += 1;
         }
         Report {
             version: env!("CARGO_PKG_VERSION"),
@@ -217,8 +217,8 @@ impl Report {
                 .tanglements
                 .iter()
                 .map(|t| TanglementReport {
-                    kind: t.kind.clone(),
-                    paths: t.paths.clone(),
+                    kind: t.kind.to_string(),
+                    paths: t.paths.to_vec(),
                     objects: t.objects,
                     loop_vertices: t.loop_vertices.clone(),
                 })

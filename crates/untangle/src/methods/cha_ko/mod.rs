@@ -197,7 +197,7 @@ impl ChaKo {
         let lv: Vec<u32> = analysis
             .paths
             .iter()
-            .flat_map(|p| p.loop_vertices.iter().copied())
+            .flat_map(|p| p.loop_vertices().iter().copied())
             .collect();
         let cut: Vec<u32> = analysis.crossings.iter().map(|c| c.edge).collect();
         self.update_uv_with_paths(&analysis.coloring, &lv, Some(&cut), Some(positions))

@@ -48,7 +48,7 @@ pub fn regionless_red(mesh: &AnalysisMesh, analysis: &Analysis) -> Option<Vec<bo
     let mut loops: Vec<u32> = analysis
         .paths
         .iter()
-        .flat_map(|p| p.loop_vertices.iter().copied())
+        .flat_map(|p| p.loop_vertices().iter().copied())
         .collect();
     loops.sort_unstable();
     loops.dedup();
@@ -59,7 +59,7 @@ pub fn regionless_red(mesh: &AnalysisMesh, analysis: &Analysis) -> Option<Vec<bo
         }
         any = true;
         for &i in &t.paths {
-            for &piece in &analysis.paths[i as usize].pieces {
+            for &piece in analysis.paths[i as usize].pieces() {
                 for &tri in &analysis.segments[(piece / 2) as usize].triangles {
                     for &v in &mesh.triangles[tri as usize] {
                         if loops.binary_search(&v).is_err() {
