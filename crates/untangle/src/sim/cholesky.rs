@@ -51,9 +51,9 @@ use crate::geom::Vec3;
 /// column-major right-hand-side buffer.
 type SolveScratch = (MemBuffer, MemBuffer, Vec<f64>);
 
-/// Scratch of the own single-precision solve: the right-hand sides in the original row order
-/// and the permuted iterate, four lanes per row.
-type LaneScratch = (Vec<[f32; 4]>, Vec<[f32; 4]>, [Vec<[f32; 4]>; 2]);
+/// Scratch of the own single-precision solve: the permuted iterate, four lanes per row (the
+/// right-hand sides are written straight into it), and the split's logs.
+type LaneScratch = (Vec<[f32; 4]>, [Vec<[f32; 4]>; 2]);
 
 /// The symbolic analysis of one node pattern plus the numeric factor of the last matrix given
 /// to [`ScalarCholesky::factor`].
@@ -78,8 +78,8 @@ pub struct ScalarCholesky {
     /// The supernodal layout of the factor for [`ScalarCholesky::solve_increment_with`]'s own
     /// solve (`None` for a simplicial factor, which faer solves).
     layout: Option<Layout>,
-    /// Scratch of the own solve: the right-hand sides in the original order and the
-    /// permuted iterate, four lanes (`x`, `y`, `z`, unused) per row.
+    /// Scratch of the own solve: the permuted iterate, four lanes (`x`, `y`, `z`, unused) per
+    /// row, and the split's logs.
     lanes: std::sync::Mutex<LaneScratch>,
 }
 
@@ -148,7 +148,17 @@ struct Split {
     /// The forward top phase in supernode order: `(supernode, part)`, part 2 = top (run it),
     /// 0 or 1 = apply its logged updates from that part's log.
     merge: Vec<(u32, u8)>,
+    /// Per part, the permuted rows (ranges `start..end`) whose right-hand side it evaluates
+    /// before its forward phase and whose solution it writes out after its backward phase: the
+    /// rows of its own supernodes, and a share of the top's rows (dealt supernode by supernode
+    /// to the part with the lighter estimated load, see [`RHS_ROW_COST`]).
+    rows_of: [Vec<(u32, u32)>; 2],
 }
+
+/// Estimated cost of evaluating one right-hand-side row, in factor entries of a substitution
+/// (for dealing the top's rows to the parts only: ~370 instructions per row of the projective
+/// global step's residual against ~8.5 per factor entry and substitution).
+const RHS_ROW_COST: usize = 40;
 
 /// Most subtree expansions tried when the schedule of [`Split`] is chosen.
 const SPLIT_EXPANSIONS: usize = 256;
@@ -167,6 +177,29 @@ struct Rows(*mut [f32; 4]);
 unsafe impl Send for Rows {}
 // SAFETY: as above.
 unsafe impl Sync for Rows {}
+
+impl Rows {
+    /// Row `k` (a method, so closures capture the `Sync` wrapper, not the raw pointer).
+    fn at(self, k: usize) -> *mut [f32; 4] {
+        self.0.wrapping_add(k)
+    }
+}
+
+/// A raw pointer to the solution rows of [`ScalarCholesky::add_increment_with`], written by the
+/// two parts of a split substitution (distinct rows).
+#[derive(Clone, Copy)]
+struct OutRows(*mut Vec3);
+// SAFETY: the parts write disjoint rows (see `Layout::solve`).
+unsafe impl Send for OutRows {}
+// SAFETY: as above.
+unsafe impl Sync for OutRows {}
+
+impl OutRows {
+    /// Row `i` (a method, so closures capture the `Sync` wrapper, not the raw pointer).
+    fn at(self, i: usize) -> *mut Vec3 {
+        self.0.wrapping_add(i)
+    }
+}
 
 /// One phase of a (split) substitution, see [`Split`].
 #[derive(Clone, Copy)]
@@ -270,7 +303,19 @@ impl Layout {
     /// at a time subtracted from the block's columns, then the triangle. Every factor value is
     /// read once per substitution for all three coordinates. With a [`Split`], on two threads
     /// (the same operations per row in the same order). `logs`: scratch of the split.
-    fn solve(&self, l: &[f32], x: &mut [[f32; 4]], logs: &mut [Vec<[f32; 4]>; 2]) {
+    ///
+    /// Row `k` of `x` is first set to `rhs(fwd[k])` (the right-hand side's row in the original
+    /// order), and at the end `emit(fwd[k], x[k])` is called once per row; with a split, both
+    /// inside the parts' parallel phases (each part the rows of [`Split::rows_of`]), so `emit`
+    /// is called from two threads at once, on distinct rows.
+    fn solve(
+        &self,
+        l: &[f32],
+        x: &mut [[f32; 4]],
+        logs: &mut [Vec<[f32; 4]>; 2],
+        rhs: impl Fn(usize) -> [f32; 4] + Sync,
+        emit: impl Fn(usize, [f32; 4]) + Sync,
+    ) {
         assert_eq!(x.len(), self.fwd.len(), "one row per matrix row");
         assert!(
             self.nodes
@@ -284,11 +329,40 @@ impl Layout {
                 .all(|s| s.tval == usize::MAX || s.tval + row_stride(s.size) * s.m <= l.len()),
             "row-major copies of the layout"
         );
-        let xp = Rows(x.as_mut_ptr());
         let Some(split) = &self.split else {
+            let fwd = &self.fwd;
+            x.par_chunks_mut(RHS_CHUNK).enumerate().for_each(|(c, xs)| {
+                for (k, o) in xs.iter_mut().enumerate() {
+                    *o = rhs(fwd[c * RHS_CHUNK + k] as usize);
+                }
+            });
+            let xp = Rows(x.as_mut_ptr());
             // SAFETY: `x` has a row per matrix row (asserted), one thread.
             unsafe { self.run(l, xp, Phase::All) };
+            for (xi, &f) in x.iter().zip(fwd) {
+                emit(f as usize, *xi);
+            }
             return;
+        };
+        let xp = Rows(x.as_mut_ptr());
+        // The rows of part `p`: written (rhs) before its forward phase, read (emit) after its
+        // backward phase; the parts' row sets are disjoint and cover all rows.
+        let fill = |p: usize| {
+            for &(a, b) in &split.rows_of[p] {
+                for k in a as usize..b as usize {
+                    // SAFETY: `k` < n (`Split::new` takes the ranges from the supernodes,
+                    // which `Layout::new` checked); no other thread accesses row `k` now.
+                    unsafe { *xp.at(k) = rhs(self.fwd[k] as usize) };
+                }
+            }
+        };
+        let out = |p: usize| {
+            for &(a, b) in &split.rows_of[p] {
+                for k in a as usize..b as usize {
+                    // SAFETY: as in `fill`; rows are only read in the backward parts.
+                    emit(self.fwd[k] as usize, unsafe { *xp.at(k) });
+                }
+            }
         };
         for (log, &len) in logs.iter_mut().zip(&split.log_len) {
             log.resize(len, [0.0; 4]);
@@ -299,14 +373,26 @@ impl Layout {
         // writes (see `Split`).
         unsafe {
             rayon::join(
-                || self.run(l, xp, Phase::ForwardPart(0, lp[0])),
-                || self.run(l, xp, Phase::ForwardPart(1, lp[1])),
+                || {
+                    fill(0);
+                    self.run(l, xp, Phase::ForwardPart(0, lp[0]))
+                },
+                || {
+                    fill(1);
+                    self.run(l, xp, Phase::ForwardPart(1, lp[1]))
+                },
             );
             self.run(l, xp, Phase::ForwardTop(lp));
             self.run(l, xp, Phase::BackwardTop);
             rayon::join(
-                || self.run(l, xp, Phase::BackwardPart(0)),
-                || self.run(l, xp, Phase::BackwardPart(1)),
+                || {
+                    self.run(l, xp, Phase::BackwardPart(0));
+                    out(0)
+                },
+                || {
+                    self.run(l, xp, Phase::BackwardPart(1));
+                    out(1)
+                },
             );
         }
     }
@@ -895,8 +981,21 @@ impl Split {
         let mut parts: [Vec<u32>; 2] = [Vec::new(), Vec::new()];
         let mut top = Vec::new();
         let mut merge = Vec::new();
+        let mut rows_of: [Vec<(u32, u32)>; 2] = [Vec::new(), Vec::new()];
+        // Estimated load of each part's first phase (right-hand side rows and forward steps).
+        let mut load = [0usize; 2];
+        for (k, s) in nodes.iter().enumerate() {
+            if part[k] != TOP {
+                let p = part[k] as usize;
+                rows_of[p].push((s.start as u32, (s.start + s.size) as u32));
+                load[p] += s.size * RHS_ROW_COST + work[k];
+            }
+        }
         for (k, s) in nodes.iter().enumerate() {
             if part[k] == TOP {
+                let p = usize::from(load[1] < load[0]);
+                rows_of[p].push((s.start as u32, (s.start + s.size) as u32));
+                load[p] += s.size * RHS_ROW_COST;
                 top.push(k as u32);
                 merge.push((k as u32, TOP));
                 continue;
@@ -932,6 +1031,7 @@ impl Split {
             log_at,
             log_len,
             merge,
+            rows_of,
         })
     }
 }
@@ -1226,7 +1326,7 @@ impl ScalarCholesky {
         let layout = Layout::new(&symbolic, n);
         Some(ScalarCholesky {
             layout,
-            lanes: std::sync::Mutex::new((Vec::new(), Vec::new(), [Vec::new(), Vec::new()])),
+            lanes: std::sync::Mutex::new((Vec::new(), [Vec::new(), Vec::new()])),
             n,
             values: vec![0.0; row_idx.len()],
             factor: vec![0.0; symbolic.len_val()],
@@ -1341,31 +1441,64 @@ impl ScalarCholesky {
     where
         F: Fn(usize) -> Vec3 + Sync,
     {
+        self.increment(|i, _| rhs(i), out, false);
+    }
+
+    /// [`ScalarCholesky::solve_increment_with`] adding the increment to `x` (`x += B^-1 r`),
+    /// with row `i` of `r` given by `rhs(i, x)` from the `x` before the update. With our own
+    /// substitution the right-hand side is evaluated and the increment added inside the
+    /// substitution's parallel parts (no separate passes over the rows); the same bits as
+    /// `solve_increment_with` into a buffer followed by `x[i] += dx[i]`.
+    pub fn add_increment_with<F>(&self, rhs: F, x: &mut [Vec3])
+    where
+        F: Fn(usize, &[Vec3]) -> Vec3 + Sync,
+    {
+        self.increment(rhs, x, true);
+    }
+
+    /// The solve of [`ScalarCholesky::solve_increment_with`] (`add`: false) and
+    /// [`ScalarCholesky::add_increment_with`] (`add`: true).
+    fn increment<F>(&self, rhs: F, out: &mut [Vec3], add: bool)
+    where
+        F: Fn(usize, &[Vec3]) -> Vec3 + Sync,
+    {
         if !self.factored {
             return;
         }
         let n = self.n;
+        assert_eq!(out.len(), n, "one row per matrix row");
         if let Some(layout) = &self.layout {
             // Our own supernodal substitutions on faer's factor layout, the three coordinates
             // as lanes of one pass over the factor (faer's solve per column group spends most
             // of its time outside the arithmetic at this size).
             let mut guard = scratch(&self.lanes, Default::default);
-            let (b, x, logs) = &mut *guard;
-            b.resize(n, [0.0; 4]);
+            let (x, logs) = &mut *guard;
             x.resize(n, [0.0; 4]);
-            b.par_chunks_mut(RHS_CHUNK).enumerate().for_each(|(c, bs)| {
-                for (k, o) in bs.iter_mut().enumerate() {
-                    let v = rhs(c * RHS_CHUNK + k);
-                    *o = [v.x as f32, v.y as f32, v.z as f32, 0.0];
-                }
-            });
-            for (xi, &f) in x.iter_mut().zip(&layout.fwd) {
-                *xi = b[f as usize];
-            }
-            layout.solve(&self.factor32, x, logs);
-            for (xi, &f) in x.iter().zip(&layout.fwd) {
-                out[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
-            }
+            let op = OutRows(out.as_mut_ptr());
+            // SAFETY: `out` has `n` rows (asserted) and outlives the solve; `rhs` reads it only
+            // while no row is written: `Layout::solve` calls `emit` (the only writes) after
+            // every `rhs` call has returned, once per row, and on distinct rows when from two
+            // threads at once.
+            let current = unsafe { std::slice::from_raw_parts(op.0 as *const Vec3, n) };
+            layout.solve(
+                &self.factor32,
+                x,
+                logs,
+                |i| {
+                    let v = rhs(i, current);
+                    [v.x as f32, v.y as f32, v.z as f32, 0.0]
+                },
+                |i, xi| {
+                    let d = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
+                    // SAFETY: see above (`i` < n: a row of the permutation).
+                    let o = unsafe { &mut *op.at(i) };
+                    if add {
+                        *o += d;
+                    } else {
+                        *o = d;
+                    }
+                },
+            );
             return;
         }
         let mut guard = scratch(&self.solve_scratch32, || {
@@ -1377,11 +1510,17 @@ impl ScalarCholesky {
         });
         let (stack_x, stack, buf) = &mut *guard;
         buf.resize(3 * n, 0.0);
-        fill_columns(buf, n, |v| v as f32, rhs);
+        let current = &*out;
+        fill_columns(buf, n, |v| v as f32, |i| rhs(i, current));
         let llt = LltRef::<'_, usize, f32>::new(&self.symbolic, &self.factor32);
         solve_x_and_yz(llt, stack_x, stack, buf, n);
         for (i, v) in out.iter_mut().enumerate() {
-            *v = Vec3::new(buf[i] as f64, buf[n + i] as f64, buf[2 * n + i] as f64);
+            let d = Vec3::new(buf[i] as f64, buf[n + i] as f64, buf[2 * n + i] as f64);
+            if add {
+                *v += d;
+            } else {
+                *v = d;
+            }
         }
     }
 
@@ -1650,6 +1789,12 @@ mod tests {
                     prop_assert!((z[i] - x[i]).norm() <= 1e-5 * (1.0 + x[i].norm()),
                         "{} vs {}", z[i], x[i]);
                 }
+                // Added in place (whichever solve the factor has): the same bits as `r + z`.
+                let mut added = r.clone();
+                chol.add_increment_with(|i, _| r[i], &mut added);
+                for i in 0..n {
+                    prop_assert_eq!(added[i], r[i] + z[i]);
+                }
                 for c in 0..3 {
                     let b = nalgebra::DVector::from_iterator(n, r.iter().map(|v| v[c]));
                     let want = lu.solve(&b).unwrap();
@@ -1691,6 +1836,12 @@ mod tests {
             prop_assert!(chol.factor(&pattern, &values, &fixed));
             let mut z = vec![Vec3::zeros(); n];
             chol.solve_increment_with(|i| r[i], &mut z);
+            // Added in place, the right-hand side read from the start: the same bits.
+            let mut added = r.clone();
+            chol.add_increment_with(|i, x| x[i], &mut added);
+            for i in 0..n {
+                prop_assert_eq!(added[i], r[i] + z[i]);
+            }
             let lu = dense.clone().lu();
             let cond = {
                 let e = dense.symmetric_eigenvalues();
@@ -1809,7 +1960,33 @@ mod tests {
                         );
                     }
                 }
+                // Added in place from a start `x0`, the right-hand side read from `x0`
+                // (`r - x0 / 2`): the same bits as the solve into a buffer, then `x0 + dx`.
+                let x0 = random_rhs(&mut rng, n);
+                let rhs = |i: usize, x: &[Vec3]| r[i] - x[i] * 0.5;
+                let mut dx = vec![Vec3::zeros(); n];
+                chol.solve_increment_with(|i| rhs(i, &x0), &mut dx);
+                let mut x = x0.clone();
+                pool.install(|| chol.add_increment_with(rhs, &mut x));
+                for i in 0..n {
+                    let want = x0[i] + dx[i];
+                    for c in 0..3 {
+                        assert_eq!(
+                            x[i][c].to_bits(),
+                            want[c].to_bits(),
+                            "added, grid {w}x{h}, {threads} threads, row {i}"
+                        );
+                    }
+                }
             }
+            // The parts' rows are disjoint and cover every row.
+            let mut seen = vec![0u8; n];
+            for &(a, b) in split.rows_of.iter().flatten() {
+                seen[a as usize..b as usize]
+                    .iter_mut()
+                    .for_each(|c| *c += 1);
+            }
+            assert!(seen.iter().all(|&c| c == 1), "rows dealt once");
             let mut exact = r.clone();
             chol.solve3(&mut exact);
             let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.amax()));

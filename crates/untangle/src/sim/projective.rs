@@ -874,12 +874,10 @@ impl Projective {
                 // The increment from the current iterate (fixed nodes at their targets): the
                 // residual `rhs - A x` per free row in double precision, evaluated while it is
                 // written into the solver's buffer, then one single-precision solve.
+                // The increment is added to `x` inside the solve's parallel parts.
                 let p = &self.pattern;
-                let dx = &mut work.dx;
-                dx.resize(n, Vec3::zeros());
-                let xs = &*x;
-                factor.solve_increment_with(
-                    |i| {
+                factor.add_increment_with(
+                    |i, xs| {
                         if problem.filter[i] == Filter::Fixed {
                             return Vec3::zeros();
                         }
@@ -887,11 +885,8 @@ impl Projective {
                         let ax = row_times(&p.cols[row.clone()], &problem.values[row], xs);
                         rhs_const[i] + self.gather(targets, i) - ax
                     },
-                    dx,
+                    x,
                 );
-                for (xi, d) in x.iter_mut().zip(dx.iter()) {
-                    *xi += d;
-                }
                 return PcgResult {
                     iterations: 1,
                     relative_residual: 0.0,

@@ -1400,8 +1400,12 @@ impl Simulator {
             bend: self
                 .rest
                 .bend
-                .iter()
+                .par_iter()
+                .with_min_len(256)
                 .map(|s| s.energy(&self.x, p.bend_stiffness))
+                // In stencil order, as the stretch energy.
+                .collect::<Vec<f64>>()
+                .iter()
                 .sum(),
             gravity: -(0..n)
                 .map(|i| self.mass[i] * p.gravity.dot(&self.x[i]))
@@ -1471,7 +1475,19 @@ impl Simulator {
 
     /// Advances one step of `params.dt` with the contact `policy` (cloth-cloth pairs; obstacle
     /// pairs default to the obstacle's thickness).
+    ///
+    /// The step runs inside rayon's pool: called from outside it, one hand-over to a worker
+    /// thread per step instead of one per parallel loop (each such hand-over puts the calling
+    /// thread to sleep and wakes it again; a step has dozens of parallel loops). The same
+    /// operations either way, so the same results.
     pub fn step(&mut self, policy: &dyn ContactPolicy) -> StepReport {
+        let mut report = None;
+        rayon::scope(|_| report = Some(self.step_in_pool(policy)));
+        report.expect("the scope ran the step")
+    }
+
+    /// [`Simulator::step`]'s body.
+    fn step_in_pool(&mut self, policy: &dyn ContactPolicy) -> StepReport {
         let t0 = Instant::now();
         let p = self.params.clone();
         let h = p.dt;
