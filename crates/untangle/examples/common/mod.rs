@@ -124,6 +124,9 @@ pub struct Tracked {
     pub final_elastic: f64,
     /// See `final_elastic`.
     pub final_kinetic: f64,
+    /// Mean over the steps of the step's mean collision shift (`StepReport::collision_shift`:
+    /// how far the collision handling moved a vertex from the solve's end position), metres.
+    pub mean_shift: f64,
 }
 
 /// `Resolver::run` written out (same steps and stopping), also keeping the stretch and the
@@ -142,8 +145,13 @@ pub fn run_tracking(
         t.final_stretch = sr.max_stretch;
         t.final_elastic = sr.energy.stretch + sr.energy.bend;
         t.final_kinetic = sr.energy.kinetic;
+        t.mean_shift += sr.collision_shift.mean;
         on_step(&rec, &sr);
     };
+    let steps = r.history().len();
+    if steps > 0 {
+        t.mean_shift /= steps as f64;
+    }
     (r.summary(outcome), t)
 }
 
