@@ -83,7 +83,7 @@ pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimP
 /// (`ResolveParams::adaptive`: projective dynamics, Baraff & Witkin after a stall), with
 /// `UNTANGLE_ADAPTIVE_STALL` stalled steps before the switch and `UNTANGLE_ADAPTIVE_BW` steps of
 /// Baraff & Witkin then (0: for the rest of the run); `pd` / `bw` (or any other value) turn it
-/// off; unset keeps `p`'s choice.
+/// off; unset keeps `p`'s choice. `CHAKO_DT` sets the loop's time step.
 pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
     let env = std::env::var("UNTANGLE_INTEGRATOR").ok();
     if env.as_deref() == Some("adaptive") {
@@ -110,6 +110,13 @@ pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
         .and_then(|s| s.parse::<usize>().ok())
     {
         p.projective_cg_cap = Some(k);
+    }
+    // CHAKO_DT: the loop's time step (`Params::dt`, Cha & Ko's 0.02 s by default).
+    if let Some(dt) = std::env::var("CHAKO_DT")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+    {
+        p.cha_ko.dt = dt;
     }
 }
 
