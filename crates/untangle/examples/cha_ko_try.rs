@@ -68,18 +68,19 @@ fn main() {
     let mut r = Resolver::new(&g, p).unwrap();
     let (s, tracked) = common::run_tracking(&mut r, |st, sr| {
         println!(
-                "{} pairs {} tang {} red {} rtri {} | pull +{} ~{} shrink +{} ~{} rev {} blk {}/{} act {} sat {} fb {} st {} | trial {} new {} inc {} blk {} | aq {} z {} | {:.1} {:.1} {:.1} ms | stretch {:.3}",
+                "{} pairs {} tang {} red {} rtri {} | pull +{} ~{} shrink +{} ~{} rev {} blk {}/{} act {} sat {} fb {} st {} | trial {} new {} inc {} blk {} | aq {} z {} | {:.1} {:.1} {:.1} ms | stretch {:.3} shift {:.4} / {:.5}",
                 st.step, st.intersecting_pairs, st.tanglements, st.red_vertices, st.red_triangles,
                 st.uv.pulls_started, st.uv.pulls_continued, st.uv.shrinks_started, st.uv.shrinks_continued,
                 st.uv.revoked_levels, st.uv.blocked_fan, st.uv.blocked_subject, st.uv.active_ops, st.uv.saturated_ops,
                 st.uv.fallbacks.len(), st.uv.stalls.len(),
                 st.trial.retries, st.trial.newly_red_first, st.trial.red_increase_accepted, st.trial.blocked_pairs,
-                st.administrative_quit, st.impact_zones, st.ms_analysis, st.ms_uv, st.ms_sim, sr.max_stretch
+                st.administrative_quit, st.impact_zones, st.ms_analysis, st.ms_uv, st.ms_sim, sr.max_stretch,
+                sr.collision_shift.max, sr.collision_shift.mean
             )
     });
     println!(
-        "max stretch (run / final) {:.3} / {:.3}, final elastic / kinetic energy {:.3e} / {:.3e} J, BW steps / switches {}",
-        tracked.max_stretch, tracked.final_stretch, tracked.final_elastic, tracked.final_kinetic,
+        "max stretch (run / final) {:.3} / {:.3}, final elastic / kinetic energy {:.3e} / {:.3e} J, mean collision shift {:.5} m, BW steps / switches {}",
+        tracked.max_stretch, tracked.final_stretch, tracked.final_elastic, tracked.final_kinetic, tracked.mean_shift,
         common::integrator_use(&r)
     );
     // AFTER=N: N more plain simulator steps (collision thickness `eps`, the loop's simulator and

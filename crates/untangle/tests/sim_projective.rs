@@ -103,3 +103,42 @@ fn rest_uv_edits_drive_the_shape_and_refactor_once() {
         "{cg} CG iterations"
     );
 }
+
+/// Cha & Ko's vertex pull (Sec. 5.1) with the loop's simulator settings: the uv edge from one
+/// vertex of a free, weightless sheet to a neighbour shrinks by gamma = 0.8 per step. Under both
+/// integrators (projective dynamics with the loop's CG cap of 1) the world edge follows its uv
+/// rest length step by step (oracle: the rest length itself). Session 19 saw pulled edges keep
+/// their world length under projective dynamics in the loop; this pins down that the
+/// integrator follows the rest edits, and that what held the edges there is the collision
+/// handling (`StepReport::collision_shift`; docs/cha-ko.md, "Loop").
+#[test]
+fn a_pulled_edge_follows_its_rest_length_with_either_integrator() {
+    let n = 8;
+    let cloth = handkerchief("s", n, n, 0.3, 0.3, |p| Vec3::new(p.x, 0.0, p.y));
+    let g = Garment::new(cloth).unwrap();
+    let uv0 = g.uv().coords.clone();
+    // The centre vertex, pulled toward its right-hand neighbour.
+    let s = (n / 2) * (n + 1) + n / 2;
+    let t = s + 1;
+    for integrator in [Integrator::BaraffWitkin, Integrator::Projective] {
+        let mut p = untangle::methods::cha_ko::ResolveParams::default().sim;
+        p.gravity = Vec3::zeros();
+        p.integrator = integrator;
+        p.projective_cg_iterations = 1;
+        let mut sim = Simulator::new(&g, p).unwrap();
+        let mut uv = uv0.clone();
+        for k in 1..=12 {
+            uv[s] = uv0[t] + (uv0[s] - uv0[t]) * 0.8f64.powi(k);
+            sim.set_rest_uv(&uv).unwrap();
+            let r = sim.step(&UniformThickness(1e-3));
+            let x = sim.positions();
+            let ratio = (x[s] - x[t]).norm() / (uv[s] - uv[t]).norm();
+            assert!(
+                (ratio - 1.0).abs() < 0.03,
+                "{integrator:?} step {k}: world / rest length {ratio}"
+            );
+            // Nothing is in contact: the collision handling leaves the solve's motion alone.
+            assert_eq!(r.collision_shift.max, 0.0, "{integrator:?} step {k}");
+        }
+    }
+}

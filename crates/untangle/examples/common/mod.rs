@@ -83,7 +83,7 @@ pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimP
 /// (`ResolveParams::adaptive`: projective dynamics, Baraff & Witkin after a stall), with
 /// `UNTANGLE_ADAPTIVE_STALL` stalled steps before the switch and `UNTANGLE_ADAPTIVE_BW` steps of
 /// Baraff & Witkin then (0: for the rest of the run); `pd` / `bw` (or any other value) turn it
-/// off; unset keeps `p`'s choice.
+/// off; unset keeps `p`'s choice. `CHAKO_DT` sets the loop's time step.
 pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
     let env = std::env::var("UNTANGLE_INTEGRATOR").ok();
     if env.as_deref() == Some("adaptive") {
@@ -111,6 +111,13 @@ pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
     {
         p.projective_cg_cap = Some(k);
     }
+    // CHAKO_DT: the loop's time step (`Params::dt`, Cha & Ko's 0.02 s by default).
+    if let Some(dt) = std::env::var("CHAKO_DT")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+    {
+        p.cha_ko.dt = dt;
+    }
 }
 
 /// What [`run_tracking`] saw of the simulator besides the loop's summary.
@@ -124,6 +131,9 @@ pub struct Tracked {
     pub final_elastic: f64,
     /// See `final_elastic`.
     pub final_kinetic: f64,
+    /// Mean over the steps of the step's mean collision shift (`StepReport::collision_shift`:
+    /// how far the collision handling moved a vertex from the solve's end position), metres.
+    pub mean_shift: f64,
 }
 
 /// `Resolver::run` written out (same steps and stopping), also keeping the stretch and the
@@ -142,8 +152,13 @@ pub fn run_tracking(
         t.final_stretch = sr.max_stretch;
         t.final_elastic = sr.energy.stretch + sr.energy.bend;
         t.final_kinetic = sr.energy.kinetic;
+        t.mean_shift += sr.collision_shift.mean;
         on_step(&rec, &sr);
     };
+    let steps = r.history().len();
+    if steps > 0 {
+        t.mean_shift /= steps as f64;
+    }
     (r.summary(outcome), t)
 }
 

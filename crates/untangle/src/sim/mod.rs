@@ -39,5 +39,5 @@ pub mod step;
 pub use collision::impact_zones::ZoneMotion;
 pub use obstacle::Obstacle;
 pub use policy::{Contact, ContactPolicy, RedGreen, UniformThickness};
-pub use report::StepReport;
+pub use report::{CollisionShift, StepReport};
 pub use step::{CgPreconditioner, Integrator, SimParams, SimSnapshot, Simulator};

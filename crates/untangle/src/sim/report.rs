@@ -4,6 +4,7 @@
 use super::collision::CollisionReport;
 use super::pcg::PcgResult;
 use super::projective::ProjectiveResult;
+use crate::geom::Vec3;
 
 /// Energies of the state at the start of the step (joules).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
@@ -31,6 +32,41 @@ pub struct StepTiming {
     pub total: f64,
 }
 
+/// How far the collision handling moved the cloth from the implicit solve's end-of-step
+/// positions: `h |v_after - v_solved|` per vertex (metres), its largest value and its mean over
+/// all vertices. Zero when nothing was in contact. A diagnostic of how much of the solve's
+/// motion the proximity impulses, CCD and impact zones undid: in the Cha & Ko loop with
+/// projective dynamics it is several times that with Baraff & Witkin (docs/cha-ko.md, "Loop").
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct CollisionShift {
+    /// Largest shift of a vertex.
+    pub max: f64,
+    /// Mean shift over the vertices.
+    pub mean: f64,
+}
+
+impl CollisionShift {
+    /// The shift from the solve's velocities `solved` to the collision handling's `after`,
+    /// over a step of `h` seconds (vertices in index order, so the sums do not depend on the
+    /// thread count).
+    pub fn between(solved: &[Vec3], after: &[Vec3], h: f64) -> Self {
+        let (mut max, mut sum) = (0.0f64, 0.0);
+        for (a, b) in solved.iter().zip(after) {
+            let d = (b - a).norm() * h;
+            max = max.max(d);
+            sum += d;
+        }
+        CollisionShift {
+            max,
+            mean: if solved.is_empty() {
+                0.0
+            } else {
+                sum / solved.len() as f64
+            },
+        }
+    }
+}
+
 /// The report of one step.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct StepReport {
@@ -48,6 +84,10 @@ pub struct StepReport {
     pub contact_springs: usize,
     /// The collision handling.
     pub collisions: CollisionReport,
+    /// How far the collision handling moved the cloth from the solve's end positions. Not in
+    /// the JSON (the step reports' JSON is what the decision hashes of BENCHMARKS.md compare).
+    #[serde(skip)]
+    pub collision_shift: CollisionShift,
     /// Energies at the start of the step.
     pub energy: Energy,
     /// Largest relative edge stretch at the end of the step (`|e| / |e_rest| - 1`).

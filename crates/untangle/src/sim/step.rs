@@ -27,7 +27,7 @@ use super::pcg::{self, Aggregation, CoarseLevel, Filter, PcgResult, PcgSettings}
 use super::policy::Contact;
 use super::policy::ContactPolicy;
 use super::projective::{self, Elastic, Projective, ProjectiveResult, StepProblem};
-use super::report::{Energy, StepReport, StepTiming};
+use super::report::{CollisionShift, Energy, StepReport, StepTiming};
 use super::rest::{bend_terms, resum_slots, RestEdit, RestIndex, RestShape};
 use super::sparse::{BsrMatrix, BsrPattern};
 use crate::error::{Error, Result};
@@ -1515,6 +1515,8 @@ impl Simulator {
             assembled: t1,
         } = solved;
         let t2 = Instant::now();
+        // The solve's velocities, to report how far the collision handling moved the cloth.
+        let solved = p.collisions.then(|| v.clone());
         let mut collisions = if p.collisions {
             let scene = Scene {
                 x0: &self.x,
@@ -1545,6 +1547,9 @@ impl Simulator {
             Default::default()
         };
         self.resting = std::mem::take(&mut collisions.resting);
+        let collision_shift = solved.map_or_else(CollisionShift::default, |s| {
+            CollisionShift::between(&s, &v, h)
+        });
         let t3 = Instant::now();
         for i in 0..n {
             self.x[i] += v[i] * h;
@@ -1563,6 +1568,7 @@ impl Simulator {
             cg,
             projective,
             collisions,
+            collision_shift,
             energy,
             max_stretch: self.max_stretch(),
             obstacle_contacts,
