@@ -116,7 +116,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub revoke_levels: u32,
     /// The loop's time integrator: `baraff-witkin` (the default: resolves the most),
-    /// `projective` (projective dynamics: about twice the steps per second, resolves fewer
+    /// `projective` (projective dynamics: about 1.7x the steps per second, resolves fewer
     /// tangles; BENCHMARKS.md) or `adaptive` (projective dynamics, Baraff & Witkin from the
     /// first stall of `--adaptive-stall` steps on).
     #[arg(long, value_enum, default_value_t = LoopIntegrator::BaraffWitkin)]
