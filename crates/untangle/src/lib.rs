@@ -23,6 +23,7 @@ pub mod geom;
 pub mod implicit;
 pub mod mesh;
 pub mod methods;
+pub mod pool;
 pub mod radix;
 pub mod render;
 pub mod scenes;

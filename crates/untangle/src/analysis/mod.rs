@@ -90,8 +90,18 @@ pub fn analyze(mesh: &AnalysisMesh, pos: &[Vec3]) -> Result<Analysis, Inconsiste
     analyze_with(mesh, pos, &Options::default())
 }
 
-/// Runs the analysis of `mesh` at positions `pos`.
+/// Runs the analysis of `mesh` at positions `pos` (inside rayon's pool,
+/// [`crate::pool::in_pool`]).
 pub fn analyze_with(
+    mesh: &AnalysisMesh,
+    pos: &[Vec3],
+    options: &Options,
+) -> Result<Analysis, Inconsistency> {
+    crate::pool::in_pool(|| analyze_in_pool(mesh, pos, options))
+}
+
+/// [`analyze_with`]'s body.
+fn analyze_in_pool(
     mesh: &AnalysisMesh,
     pos: &[Vec3],
     options: &Options,

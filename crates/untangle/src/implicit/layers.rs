@@ -77,8 +77,19 @@ impl Default for FieldParams {
 
 /// Builds the cached fields of a mesh: `f` from Poisson-disk samples with outward normals
 /// (outward = away from `centre`), `h` from the open-boundary samples (none when the mesh is
-/// closed or `closed` is set, as for the body).
+/// closed or `closed` is set, as for the body). Runs inside rayon's pool
+/// ([`crate::pool::in_pool`]).
 pub fn build_field(
+    mesh: &Mesh,
+    centre: &Vec3,
+    closed: bool,
+    params: &FieldParams,
+) -> Result<GarmentField> {
+    crate::pool::in_pool(|| build_field_in_pool(mesh, centre, closed, params))
+}
+
+/// [`build_field`]'s body.
+fn build_field_in_pool(
     mesh: &Mesh,
     centre: &Vec3,
     closed: bool,
@@ -404,8 +415,32 @@ pub fn untangle_layers(
     )
 }
 
-/// Projection with precomputed fields (e.g. from a garment library).
+/// Projection with precomputed fields (e.g. from a garment library), run inside rayon's pool
+/// ([`crate::pool::in_pool`]).
 pub fn untangle_with_fields(
+    body: Option<(&Mesh, &GarmentField)>,
+    garments: &[GarmentInput],
+    fields: &[GarmentField],
+    field_ms: &[f64],
+    body_field_ms: f64,
+    params: &Params,
+    progress: &(dyn Fn(Stage) + Sync),
+) -> Result<Untangled> {
+    crate::pool::in_pool(|| {
+        untangle_in_pool(
+            body,
+            garments,
+            fields,
+            field_ms,
+            body_field_ms,
+            params,
+            progress,
+        )
+    })
+}
+
+/// [`untangle_with_fields`]'s body.
+fn untangle_in_pool(
     body: Option<(&Mesh, &GarmentField)>,
     garments: &[GarmentInput],
     fields: &[GarmentField],

@@ -1476,14 +1476,10 @@ impl Simulator {
     /// Advances one step of `params.dt` with the contact `policy` (cloth-cloth pairs; obstacle
     /// pairs default to the obstacle's thickness).
     ///
-    /// The step runs inside rayon's pool: called from outside it, one hand-over to a worker
-    /// thread per step instead of one per parallel loop (each such hand-over puts the calling
-    /// thread to sleep and wakes it again; a step has dozens of parallel loops). The same
-    /// operations either way, so the same results.
+    /// The step runs inside rayon's pool ([`crate::pool::in_pool`]): one hand-over to a worker
+    /// thread per step instead of one per parallel loop; the same results.
     pub fn step(&mut self, policy: &dyn ContactPolicy) -> StepReport {
-        let mut report = None;
-        rayon::scope(|_| report = Some(self.step_in_pool(policy)));
-        report.expect("the scope ran the step")
+        crate::pool::in_pool(|| self.step_in_pool(policy))
     }
 
     /// [`Simulator::step`]'s body.

@@ -277,6 +277,12 @@ impl Resolver {
     /// One pass of Fig. 1b: analysis, uv update, simulator step with m-CCH. Returns the pass's
     /// record and the simulator's step report.
     pub fn step(&mut self) -> Result<(LoopStep, StepReport)> {
+        crate::pool::in_pool(|| self.step_in_pool())
+    }
+
+    /// [`Resolver::step`]'s body, run inside rayon's pool ([`crate::pool::in_pool`]: one
+    /// hand-over to a worker thread per loop step).
+    fn step_in_pool(&mut self) -> Result<(LoopStep, StepReport)> {
         let integrator_switch = self.apply_schedule()?;
         let t0 = Instant::now();
         let pos: Vec<Vec3> = self.sim.positions().to_vec();
