@@ -564,6 +564,41 @@ mod tests {
         ]
     }
 
+    /// The node split of a pair: nodes `..split` are one primitive (the vertex when `vt`, else
+    /// the first edge), `split..4` the other.
+    fn split_of(vt: bool) -> usize {
+        if vt {
+            1
+        } else {
+            2
+        }
+    }
+
+    /// Plain `f64::max` fold of `amax` over four vectors (from 0).
+    fn amax_fold(p: &[Vec3; 4]) -> f64 {
+        p.iter().fold(0.0f64, |m, w| m.max(w.amax()))
+    }
+
+    /// Plain oracle of [`relative_speed`]: the loop over node pairs with `f64::max`.
+    fn plain_relative_speed(vel: &[Vec3; 4], vt: bool) -> f64 {
+        let split = split_of(vt);
+        let mut rel = 0.0f64;
+        for i in 0..split {
+            for j in split..4 {
+                rel = rel.max((vel[i] - vel[j]).norm_squared());
+            }
+        }
+        rel.sqrt() * (1.0 + 1e-9) + 1e-9 * amax_fold(vel)
+    }
+
+    /// Plain oracle of [`primitive_speeds`]: each primitive's fastest node, a `f64::max` fold
+    /// from 0.
+    fn plain_primitive_speeds(vel: &[Vec3; 4], vt: bool) -> (f64, f64) {
+        let split = split_of(vt);
+        let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
+        (speed(0..split), speed(split..4))
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(4000))]
         /// Oracle for the unrolled [`relative_speed`]: the previous loop with `f64::max`
@@ -574,25 +609,15 @@ mod tests {
             vt in any::<bool>(),
         ) {
             let vel = v.map(v3);
-            let split = if vt { 1 } else { 2 };
-            let mut rel = 0.0f64;
-            for i in 0..split {
-                for j in split..4 {
-                    rel = rel.max((vel[i] - vel[j]).norm_squared());
-                }
-            }
-            let vmax = vel.iter().fold(0.0f64, |m, w| m.max(w.amax()));
-            let want = rel.sqrt() * (1.0 + 1e-9) + 1e-9 * vmax;
+            let want = plain_relative_speed(&vel, vt);
             let got = relative_speed(&vel, vt);
             prop_assert!(got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
                 "{got} vs {want}");
-            let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
             let (a, b) = primitive_speeds(&vel, vt);
-            prop_assert_eq!(a.to_bits(), speed(0..split).to_bits());
-            prop_assert_eq!(b.to_bits(), speed(split..4).to_bits());
+            let (wa, wb) = plain_primitive_speeds(&vel, vt);
+            prop_assert_eq!((a.to_bits(), b.to_bits()), (wa.to_bits(), wb.to_bits()));
             let scale = crate::sim::collision::abs_max(&vel);
-            let fold = vel.iter().fold(0.0f64, |m, p| m.max(p.amax()));
-            prop_assert_eq!(scale.to_bits(), fold.to_bits());
+            prop_assert_eq!(scale.to_bits(), amax_fold(&vel).to_bits());
         }
 
         /// Oracle for the per-node statistics [`screen_pair`] reads (tabulated per vertex by
@@ -609,22 +634,13 @@ mod tests {
             let (vel, x) = (v.map(v3), x.map(v3));
             let stats = [0, 1, 2, 3].map(|k| NodeStats::of(&x[k], &vel[k]));
             let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
-            let amax_fold = |p: &[Vec3; 4]| p.iter().fold(0.0f64, |m, w| m.max(w.amax()));
-            let split = if vt { 1 } else { 2 };
-            let mut rel = 0.0f64;
-            for i in 0..split {
-                for j in split..4 {
-                    rel = rel.max((vel[i] - vel[j]).norm_squared());
-                }
-            }
-            let want = rel.sqrt() * (1.0 + 1e-9) + 1e-9 * amax_fold(&vel);
+            let want = plain_relative_speed(&vel, vt);
             let vmax = crate::sim::collision::max_of_abs_maxes(&stats.map(|s| s.vel_max));
             let got = relative_speed_given_max(&vel, vt, vmax);
             prop_assert!(same(got, want), "{got} vs {want}");
-            let speed = |r: std::ops::Range<usize>| r.map(|k| vel[k].norm()).fold(0.0f64, f64::max);
             let (a, b) = primitive_speeds_of(stats.map(|s| s.speed), vt);
-            prop_assert_eq!(a.to_bits(), speed(0..split).to_bits());
-            prop_assert_eq!(b.to_bits(), speed(split..4).to_bits());
+            let (wa, wb) = plain_primitive_speeds(&vel, vt);
+            prop_assert_eq!((a.to_bits(), b.to_bits()), (wa.to_bits(), wb.to_bits()));
             let scale = crate::sim::collision::max_of_abs_maxes(&stats.map(|s| s.pos_max));
             prop_assert_eq!(scale.to_bits(), amax_fold(&x).to_bits());
         }
