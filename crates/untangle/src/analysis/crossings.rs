@@ -81,6 +81,7 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
     let topo = &mesh.topology;
     let tris = &mesh.triangles;
     let has_obstacles = mesh.objects.iter().any(|o| o.kind == ObjectKind::Obstacle);
+    let reporters = &mesh.reporters;
     // Triangles in slot order, prepared for the pair kernel: the traversal reads them from
     // contiguous memory.
     let order = broad.order();
@@ -100,17 +101,12 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
         .map(|&t| {
             let edges = topo.triangle_edges[t as usize];
             let v = tris[t as usize];
+            let obstacle = has_obstacles && mesh.kind_of_triangle(t) == ObjectKind::Obstacle;
             SlotTriangle {
                 vertices: [v[0], v[1], v[2], NONE],
-                owned_edges: edges.map(|e| {
-                    if topo.edge_triangles[e as usize][0] == t {
-                        e
-                    } else {
-                        NONE
-                    }
-                }),
+                owned_edges: edges.map(|e| if reporters.reports(e, t) { e } else { NONE }),
                 id: t,
-                obstacle: has_obstacles && mesh.kind_of_triangle(t) == ObjectKind::Obstacle,
+                skip: obstacle as u8 | (reporters.silent[t as usize] as u8) << 1,
             }
         })
         .collect();
@@ -130,6 +126,8 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
         ctx: &ctx,
     };
     let visit = |sa: u32, sb: u32, out: &mut Vec<Crossing>| pairs.visit(sa, sb, out);
+    // Slots the sweep need not pair with each other: silent triangles report nothing.
+    let quiet = || -> Vec<bool> { slot_tris.iter().map(|t| t.skip & 2 != 0).collect() };
     // Triangles of a certified patch (hierarchy only): a fan entirely inside one patch is
     // embedded too.
     let mut patch_of = vec![u32::MAX; tris.len()];
@@ -138,14 +136,14 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
         // run side by side (concatenated in a fixed order, and sorted below anyway).
         BroadPhase::Sweep(sweep) if rayon::current_num_threads() > 1 => {
             let (mut out, fans) = rayon::join(
-                || sweep.self_slot_pairs(visit),
+                || sweep.self_slot_pairs_skipping(&quiet(), visit),
                 || fan_crossings(&ctx, has_obstacles, &patch_of),
             );
             out.extend(fans);
             out
         }
         BroadPhase::Sweep(sweep) => {
-            let mut out = sweep.self_slot_pairs(visit);
+            let mut out = sweep.self_slot_pairs_skipping(&quiet(), visit);
             out.extend(fan_crossings(&ctx, has_obstacles, &patch_of));
             out
         }
@@ -200,11 +198,11 @@ impl SlotPairs<'_> {
     #[inline(always)]
     fn visit(&self, sa: u32, sb: u32, out: &mut Vec<Crossing>) {
         let (ta, tb) = (&self.tris[sa as usize], &self.tris[sb as usize]);
+        if ta.skip & tb.skip != 0 {
+            return; // two obstacle triangles, or two silent ones (nothing to report)
+        }
         if shares_a_vertex(&ta.vertices, &tb.vertices) {
             return; // shared vertex or edge: the fan pass decides
-        }
-        if ta.obstacle && tb.obstacle {
-            return;
         }
         match pair_crossings(&self.prep[sa as usize], &self.prep[sb as usize]) {
             PairOutcome::Apart | PairOutcome::Crossings(0) => {}
@@ -233,17 +231,19 @@ impl SlotPairs<'_> {
 struct SlotTriangle {
     /// The three vertices and [`NONE`] (padding for the four-lane vertex test).
     vertices: [u32; 4],
-    /// Edge `k` (corner `k` to `k + 1`) if this triangle owns it (is the lower-indexed triangle
-    /// beside it, so it reports the edge's crossings), else [`NONE`].
+    /// Edge `k` (corner `k` to `k + 1`) if this triangle reports its crossings
+    /// ([`super::Reporters`]), else [`NONE`].
     owned_edges: [u32; 3],
     /// Triangle index.
     id: u32,
-    /// Whether the triangle belongs to an obstacle (obstacle-obstacle pairs are skipped).
-    obstacle: bool,
+    /// Bit 0: the triangle belongs to an obstacle; bit 1: it is silent (reports no edge). A
+    /// pair with a common bit is skipped: obstacle-obstacle pairs are not analysed, and two
+    /// silent triangles have nothing to report.
+    skip: u8,
 }
 
 /// Crossings of the edges `k` of `a` with bit `k` set in `mask` through triangle `b`, for the
-/// edges that `a` owns.
+/// edges that `a` reports.
 #[inline(always)]
 fn push_owned_edges(a: &SlotTriangle, b: u32, mask: u8, out: &mut Vec<Crossing>) {
     for (k, &e) in a.owned_edges.iter().enumerate() {
@@ -300,6 +300,7 @@ fn fan_crossings(ctx: &Ctx, has_obstacles: bool, patch_of: &[u32]) -> Vec<Crossi
     let (mesh, pos) = (ctx.mesh, ctx.pos);
     let topo = &mesh.topology;
     let tris = &mesh.triangles;
+    let silent = &mesh.reporters.silent;
     let fan = |mut out: Vec<Crossing>, v: u32| {
         let fan = topo.vertex_triangles.row(v as usize);
         let boundary = topo.boundary_vertex[v as usize];
@@ -320,6 +321,9 @@ fn fan_crossings(ctx: &Ctx, has_obstacles: bool, patch_of: &[u32]) -> Vec<Crossi
                 let shared = |x: u32| (x == tb[0]) | (x == tb[1]) | (x == tb[2]);
                 if shared(ta[0]) as u8 + shared(ta[1]) as u8 + shared(ta[2]) as u8 != 1 {
                     continue;
+                }
+                if silent[a as usize] && silent[b as usize] {
+                    continue; // neither reports an edge
                 }
                 if has_obstacles
                     && mesh.kind_of_triangle(a) == ObjectKind::Obstacle
@@ -439,7 +443,7 @@ struct Ctx<'a> {
 impl Ctx<'_> {
     /// All crossings between triangles `a` and `b` (no common vertex) that the pair kernel left
     /// undecided, given the certified sides of each one's corners with respect to the other's
-    /// plane. Each edge is tested only by its owner (the lower-indexed triangle beside it), so
+    /// plane. Each edge is tested only by its reporter ([`super::Reporters`]), so
     /// every crossing is found exactly once.
     ///
     /// Pairs that look coplanar go through a 2D separating-axis test (a conservative filter);
@@ -485,7 +489,7 @@ impl Ctx<'_> {
             };
             let k = (kv + 1) % 3;
             let e = topo.triangle_edges[x as usize][k];
-            if topo.edge_triangles[e as usize][0] != x {
+            if !self.mesh.reporters.reports(e, x) {
                 continue;
             }
             let (i, j) = (tx[k], tx[(k + 1) % 3]);
@@ -510,7 +514,7 @@ impl Ctx<'_> {
         }
     }
 
-    /// Edges of `a` (owned by `a`, not incident to `b`) against triangle `b`; `sides` are the
+    /// Edges of `a` (reported by `a`, not incident to `b`) against triangle `b`; `sides` are the
     /// certified sides of `a`'s corners with respect to `b`'s plane.
     #[inline]
     fn edges(
@@ -536,7 +540,7 @@ impl Ctx<'_> {
                 continue;
             }
             let e = edges[k];
-            if topo.edge_triangles[e as usize][0] != a {
+            if !self.mesh.reporters.reports(e, a) {
                 continue;
             }
             let (i, j) = (ta[k], ta[(k + 1) % 3]);

@@ -42,6 +42,8 @@ pub struct AnalysisMesh {
     pub objects: Vec<Object>,
     /// Object of each triangle.
     pub object_of_triangle: Vec<u32>,
+    /// The triangle reporting each edge's crossings, and the triangles reporting none.
+    pub reporters: super::Reporters,
 }
 
 impl AnalysisMesh {
@@ -71,9 +73,11 @@ impl AnalysisMesh {
                 .0
                 .triangle_place(t - objects[o].triangles.start as usize)
         })?;
+        let reporters = super::Reporters::new(&topology);
         Ok((
             AnalysisMesh {
                 triangles,
+                reporters,
                 topology,
                 objects,
                 object_of_triangle,

@@ -13,6 +13,7 @@ pub mod input;
 pub mod paths;
 pub mod regions;
 pub mod report;
+pub mod reporters;
 pub mod segments;
 
 pub use coloring::Coloring;
@@ -20,6 +21,7 @@ pub use crossings::Crossing;
 pub use input::{AnalysisMesh, Object, ObjectKind};
 pub use paths::{EndKind, Path, PathKind, Tanglement};
 pub use regions::Region;
+pub use reporters::Reporters;
 pub use segments::{End, Inconsistency, Segment};
 
 use crate::geom::Vec3;

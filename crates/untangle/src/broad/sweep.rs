@@ -98,12 +98,51 @@ impl SweepAndPrune {
         T: Send,
         F: Fn(u32, u32, &mut Vec<T>) + Sync,
     {
+        self.pairs_impl(None, visit)
+    }
+
+    /// Like [`SweepAndPrune::self_slot_pairs`], without the pairs of two *quiet* slots
+    /// (`quiet[slot]`, one entry per slot): a quiet box is swept against the boxes that are not
+    /// quiet only, kept in a second, compacted copy of the bounds.
+    pub fn self_slot_pairs_skipping<T, F>(&self, quiet: &[bool], visit: F) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+    {
+        assert_eq!(quiet.len(), self.len(), "one flag per slot");
+        self.pairs_impl(Some(Loud::new(self, quiet)), visit)
+    }
+
+    /// The sweep of [`SweepAndPrune::self_slot_pairs`]; with `loud`, quiet slots scan only the
+    /// loud boxes after them.
+    fn pairs_impl<T, F>(&self, loud: Option<Loud>, visit: F) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+    {
         use rayon::prelude::*;
         let n = self.len();
         let sweep = |range: std::ops::Range<usize>, out: &mut Vec<T>| {
             for i in range {
                 let max_x = self.lanes[1][i];
                 let probe = self.probe(i);
+                if let Some(loud) = loud.as_ref().filter(|l| l.quiet[i]) {
+                    // Only the loud boxes after slot i.
+                    let m = loud.slots.len();
+                    let mut k = loud.first_after[i] as usize;
+                    while k < m && loud.lanes[0][k].partial_cmp(&max_x) != Some(Ordering::Greater) {
+                        let mut bits = overlap_pair_in(&loud.lanes, &probe, k);
+                        while bits != 0 {
+                            let l = bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            if k + l < m {
+                                visit(i as u32, loud.slots[k + l], out);
+                            }
+                        }
+                        k += 2;
+                    }
+                    continue;
+                }
                 let mut j = i + 1;
                 // Later boxes start no earlier: once one starts after box i ends, none of the
                 // rest reaches back to it.
@@ -142,6 +181,79 @@ impl SweepAndPrune {
     }
 }
 
+/// The slots that are not quiet, for [`SweepAndPrune::self_slot_pairs_skipping`].
+struct Loud<'a> {
+    /// Per slot, whether it is quiet.
+    quiet: &'a [bool],
+    /// The loud slots, ascending.
+    slots: Vec<u32>,
+    /// Their bounds by field, as [`SweepAndPrune`]'s (padded by one slot).
+    lanes: [Vec<f64>; 6],
+    /// Per slot, the position in `slots` of the first loud slot after it.
+    first_after: Vec<u32>,
+}
+
+impl<'a> Loud<'a> {
+    fn new(s: &SweepAndPrune, quiet: &'a [bool]) -> Self {
+        let slots: Vec<u32> = (0..s.len() as u32)
+            .filter(|&i| !quiet[i as usize])
+            .collect();
+        let lanes = std::array::from_fn(|f| {
+            let mut v: Vec<f64> = slots.iter().map(|&i| s.lanes[f][i as usize]).collect();
+            v.push(f64::NAN);
+            v
+        });
+        let mut first_after = Vec::with_capacity(s.len());
+        let mut k = 0u32;
+        for i in 0..s.len() {
+            if !quiet[i] {
+                k += 1; // slot i is slots[k - 1]
+            }
+            first_after.push(k);
+        }
+        Loud {
+            quiet,
+            slots,
+            lanes,
+            first_after,
+        }
+    }
+}
+
+/// Whether the probed box overlaps boxes `j` and `j + 1` of `lanes` (bits 0 and 1;
+/// [`Aabb::overlaps`], false with the NaN padding), two lanes at a time with SSE2 (the x86-64
+/// baseline).
+#[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+#[inline(always)]
+fn overlap_pair_in(lanes: &[Vec<f64>; 6], a: &Probe, j: usize) -> u8 {
+    use std::arch::x86_64::*;
+    assert!(j + 1 < lanes[0].len());
+    // SAFETY: SSE2 is enabled at compile time; `j + 1` is within every field (asserted
+    // above; the fields have one slot of padding and equal lengths).
+    unsafe {
+        let l = |f: usize| _mm_loadu_pd(lanes[f].as_ptr().add(j));
+        let m = _mm_and_pd(
+            _mm_and_pd(
+                _mm_and_pd(_mm_cmple_pd(a[0], l(1)), _mm_cmple_pd(l(0), a[1])),
+                _mm_and_pd(_mm_cmple_pd(a[2], l(3)), _mm_cmple_pd(l(2), a[3])),
+            ),
+            _mm_and_pd(_mm_cmple_pd(a[4], l(5)), _mm_cmple_pd(l(4), a[5])),
+        );
+        _mm_movemask_pd(m) as u8
+    }
+}
+
+/// Portable version of the two-lane test above.
+#[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+#[inline(always)]
+fn overlap_pair_in(lanes: &[Vec<f64>; 6], a: &Probe, j: usize) -> u8 {
+    let ov = |k: usize| {
+        let f = |f: usize| lanes[f][k];
+        a[0] <= f(1) && f(0) <= a[1] && a[2] <= f(3) && f(2) <= a[3] && a[4] <= f(5) && f(4) <= a[5]
+    };
+    ov(j) as u8 | (ov(j + 1) as u8) << 1
+}
+
 /// Box `i`'s bounds, each in both lanes, for [`SweepAndPrune::overlap_pair`].
 #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
 type Probe = [std::arch::x86_64::__m128d; 6];
@@ -165,41 +277,10 @@ impl SweepAndPrune {
     }
 
     /// Whether the probed box overlaps boxes `j` and `j + 1` (bits 0 and 1; [`Aabb::overlaps`],
-    /// false with the NaN padding), two lanes at a time with SSE2 (the x86-64 baseline).
-    #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+    /// false with the NaN padding).
     #[inline(always)]
     fn overlap_pair(&self, a: &Probe, j: usize) -> u8 {
-        use std::arch::x86_64::*;
-        assert!(j + 1 < self.lanes[0].len());
-        // SAFETY: SSE2 is enabled at compile time; `j + 1` is within every field (asserted
-        // above; the fields have one slot of padding).
-        unsafe {
-            let l = |f: usize| _mm_loadu_pd(self.lanes[f].as_ptr().add(j));
-            let m = _mm_and_pd(
-                _mm_and_pd(
-                    _mm_and_pd(_mm_cmple_pd(a[0], l(1)), _mm_cmple_pd(l(0), a[1])),
-                    _mm_and_pd(_mm_cmple_pd(a[2], l(3)), _mm_cmple_pd(l(2), a[3])),
-                ),
-                _mm_and_pd(_mm_cmple_pd(a[4], l(5)), _mm_cmple_pd(l(4), a[5])),
-            );
-            _mm_movemask_pd(m) as u8
-        }
-    }
-
-    /// Portable version of the two-lane test above.
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
-    #[inline(always)]
-    fn overlap_pair(&self, a: &Probe, j: usize) -> u8 {
-        let ov = |k: usize| {
-            let f = |f: usize| self.lanes[f][k];
-            a[0] <= f(1)
-                && f(0) <= a[1]
-                && a[2] <= f(3)
-                && f(2) <= a[3]
-                && a[4] <= f(5)
-                && f(4) <= a[5]
-        };
-        ov(j) as u8 | (ov(j + 1) as u8) << 1
+        overlap_pair_in(&self.lanes, a, j)
     }
 
     /// Whether box `i` overlaps boxes `j` and `j + 1`, one box at a time with
@@ -224,11 +305,13 @@ mod tests {
     proptest! {
         /// Exactly the overlapping pairs of a brute-force scan, also with many equal lower
         /// bounds and touching boxes (coordinates on a coarse lattice), the same with one and
-        /// with two worker threads; the pair count bounds the overlaps.
+        /// with two worker threads; the pair count bounds the overlaps. With quiet slots, the
+        /// same pairs without those of two quiet slots.
         #[test]
         fn matches_brute_force(
             raw in proptest::collection::vec((proptest::array::uniform3(-10.0f64..10.0), proptest::array::uniform3(0.0f64..1.5)), 0..300),
             lattice in proptest::bool::ANY,
+            quiet_bits in proptest::collection::vec(proptest::bool::ANY, 1..40),
         ) {
             let raw: Vec<([f64; 3], [f64; 3])> = if lattice {
                 raw.iter().map(|(c, e)| (c.map(f64::round), e.map(|x| x.round()))).collect()
@@ -265,6 +348,25 @@ mod tests {
             got.sort();
             prop_assert!(s.x_pairs() >= got.len());
             prop_assert_eq!(got, want);
+            // Skipping the pairs of two quiet slots: exactly the other pairs, in the same
+            // order for one and two threads.
+            let quiet: Vec<bool> = (0..a.len()).map(|i| quiet_bits[i % quiet_bits.len()]).collect();
+            let run_q = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                pool.install(|| s.self_slot_pairs_skipping(&quiet, |i, j, o: &mut Vec<(u32, u32)>| o.push((i, j))))
+            };
+            let one_q = run_q(1);
+            prop_assert_eq!(&one_q, &run_q(2));
+            let mut got_q = one_q.clone();
+            got_q.sort();
+            let mut want_q: Vec<(u32, u32)> = one
+                .iter()
+                .copied()
+                .filter(|&(i, j)| !(quiet[i as usize] && quiet[j as usize]))
+                .collect();
+            want_q.sort();
+            prop_assert_eq!(got_q, want_q);
+            prop_assert!(one_q.iter().all(|&(i, j)| i < j));
             // The two-lane box test equals the one-box-at-a-time one (padding lane included).
             for i in 0..a.len() {
                 for j in i + 1..a.len() {
