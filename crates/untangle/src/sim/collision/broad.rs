@@ -207,7 +207,10 @@ impl BroadPhase {
     /// duplicates. A pair without a changed vertex has the same swept boxes as in the previous
     /// pass, so between passes only these can become candidates; the queries start from the
     /// changed primitives instead of traversing everything, which makes the later CCD passes
-    /// of a step cost in proportion to what the impulses touched.
+    /// of a step cost in proportion to what the impulses touched. Each pair is reported by one
+    /// query only (a vertex-triangle pair by its vertex if changed, else by its triangle; an
+    /// edge pair by its lower edge if both are touched), so the cloth pairs need no
+    /// deduplication and are ordered by two counting sorts per kind.
     pub fn candidates_of_changed(
         &self,
         scene: &Scene,
@@ -222,88 +225,123 @@ impl BroadPhase {
         let tris: Vec<u32> = (0..scene.triangles.len() as u32)
             .filter(|&t| touched(&scene.triangles[t as usize]))
             .collect();
+        let edge_touched: Vec<bool> = scene.edges.iter().map(|e| touched(e)).collect();
         let edges: Vec<u32> = (0..scene.edges.len() as u32)
-            .filter(|&e| touched(&scene.edges[e as usize]))
+            .filter(|&e| edge_touched[e as usize])
             .collect();
-        let mut out: Vec<Pair> = verts
+        let (nt, ne) = (scene.triangles.len(), scene.edges.len());
+        // Cloth vertex-triangle pairs `(vertex, triangle)`: from the changed vertices, then
+        // from the touched triangles with an unchanged vertex.
+        let mut vt: Vec<(u32, u32)> = verts
+            .par_iter()
+            .with_min_len(64)
+            .flat_map_iter(|&p| {
+                let b = self.vert_boxes[p as usize];
+                let mut local = Vec::new();
+                self.tri.query(&b, |t| {
+                    if !scene.triangles[t as usize].contains(&p) {
+                        local.push((p, t));
+                    }
+                });
+                local
+            })
+            .collect();
+        vt.par_extend(tris.par_iter().with_min_len(64).flat_map_iter(|&t| {
+            let tri = scene.triangles[t as usize];
+            let b = self.tri_boxes[t as usize];
+            let mut local = Vec::new();
+            self.vert.query(&b, |p| {
+                if !changed[p as usize] && !tri.contains(&p) {
+                    local.push((p, t));
+                }
+            });
+            local
+        }));
+        // Cloth edge pairs `(lower, higher)`, each from one of its touched edges.
+        let all_edges = scene.edges;
+        let mut ee: Vec<(u32, u32)> = edges
+            .par_iter()
+            .with_min_len(64)
+            .flat_map_iter(|&i| {
+                let e = all_edges[i as usize];
+                let b = self.edge_boxes[i as usize];
+                let mut local = Vec::new();
+                self.edge.query(&b, |j| {
+                    let f = all_edges[j as usize];
+                    if (i < j || !edge_touched[j as usize])
+                        && e[0] != f[0]
+                        && e[0] != f[1]
+                        && e[1] != f[0]
+                        && e[1] != f[1]
+                    {
+                        local.push((i.min(j), i.max(j)));
+                    }
+                });
+                local
+            })
+            .collect();
+        let ((), ()) = rayon::join(
+            || crate::radix::sort_by_bucket_then_key(&mut vt, (n, nt), |x| x.0, |x| x.1),
+            || crate::radix::sort_by_bucket_then_key(&mut ee, (ne, ne), |x| x.0, |x| x.1),
+        );
+        // Kinds in the order of `Pair`'s: vertex-triangle, edge-edge, then the obstacle kinds.
+        let mut out: Vec<Pair> = Vec::with_capacity(vt.len() + ee.len());
+        out.extend(vt.into_iter().map(|(a, b)| Pair {
+            kind: PairKind::VertexTriangle,
+            a,
+            b,
+        }));
+        out.extend(ee.into_iter().map(|(a, b)| Pair {
+            kind: PairKind::EdgeEdge,
+            a,
+            b,
+        }));
+        if obs.is_empty() {
+            return out;
+        }
+        let mut more: Vec<Pair> = verts
             .par_iter()
             .with_min_len(64)
             .flat_map_iter(|&p| {
                 let b = swept(scene, v, [p], 0.0);
                 let mut local = Vec::new();
-                self.tri.query(&b, |t| {
-                    if !scene.triangles[t as usize].contains(&p) {
-                        local.push(Pair {
-                            kind: PairKind::VertexTriangle,
-                            a: p,
-                            b: t,
-                        });
-                    }
-                });
-                if !obs.is_empty() {
-                    self.obs_tri.query(&b.inflated(margin), |t| {
-                        local.push(Pair {
-                            kind: PairKind::VertexObstacle,
-                            a: p,
-                            b: t,
-                        });
-                    });
-                }
-                local
-            })
-            .collect();
-        out.par_extend(tris.par_iter().with_min_len(64).flat_map_iter(|&t| {
-            let tri = scene.triangles[t as usize];
-            let b = self.tri_boxes[t as usize];
-            let mut local = Vec::new();
-            self.vert.query(&b, |p| {
-                if !tri.contains(&p) {
+                self.obs_tri.query(&b.inflated(margin), |t| {
                     local.push(Pair {
-                        kind: PairKind::VertexTriangle,
+                        kind: PairKind::VertexObstacle,
                         a: p,
                         b: t,
                     });
-                }
-            });
-            if !obs.is_empty() {
-                self.obs_vert.query(&b, |q| {
-                    local.push(Pair {
-                        kind: PairKind::ObstacleVertex,
-                        a: q,
-                        b: t,
-                    });
                 });
-            }
+                local
+            })
+            .collect();
+        more.par_extend(tris.par_iter().with_min_len(64).flat_map_iter(|&t| {
+            let b = self.tri_boxes[t as usize];
+            let mut local = Vec::new();
+            self.obs_vert.query(&b, |q| {
+                local.push(Pair {
+                    kind: PairKind::ObstacleVertex,
+                    a: q,
+                    b: t,
+                });
+            });
             local
         }));
-        let all_edges = scene.edges;
-        out.par_extend(edges.par_iter().with_min_len(64).flat_map_iter(|&i| {
-            let e = all_edges[i as usize];
+        more.par_extend(edges.par_iter().with_min_len(64).flat_map_iter(|&i| {
             let b = self.edge_boxes[i as usize];
             let mut local = Vec::new();
-            self.edge.query(&b, |j| {
-                let f = all_edges[j as usize];
-                if e[0] != f[0] && e[0] != f[1] && e[1] != f[0] && e[1] != f[1] {
-                    local.push(Pair {
-                        kind: PairKind::EdgeEdge,
-                        a: i.min(j),
-                        b: i.max(j),
-                    });
-                }
-            });
-            if !obs.is_empty() {
-                self.obs_edge.query(&b, |j| {
-                    local.push(Pair {
-                        kind: PairKind::EdgeObstacleEdge,
-                        a: i,
-                        b: j,
-                    });
+            self.obs_edge.query(&b, |j| {
+                local.push(Pair {
+                    kind: PairKind::EdgeObstacleEdge,
+                    a: i,
+                    b: j,
                 });
-            }
+            });
             local
         }));
-        out.par_sort_unstable();
-        out.dedup();
+        more.par_sort_unstable();
+        more.dedup();
+        out.extend(more);
         out
     }
 
