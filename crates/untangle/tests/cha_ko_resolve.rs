@@ -97,12 +97,20 @@ fn cross_resolves_with_slit_ridges() {
     // the same triangles around a fold of the other wedge; no region, no red vertex). With
     // `slit_ridges` (ours, off by default, `methods::cha_ko::slit`) the fold's ridge vertices
     // are coloured red when that happens and pulled back across: CROSS resolves at one and two
-    // subdivision levels and for gamma 0.7-0.9, without the regionless fallback.
-    for (size, gamma) in [(2, 0.8), (1, 0.8), (2, 0.7), (2, 0.9)] {
+    // subdivision levels and for gamma 0.7-0.9, without the regionless fallback, after a stall
+    // of 10 steps (`slit_stall`, its default) or at once.
+    for (size, gamma, stall) in [
+        (2, 0.8, 10),
+        (1, 0.8, 10),
+        (2, 0.7, 10),
+        (2, 0.9, 10),
+        (2, 0.8, 0),
+    ] {
         let scene = untangle::scenes::by_name("cross", Some(size), 1).unwrap();
         let g = scene_garment(&scene);
         let mut p = params(400);
         p.slit_ridges = true;
+        p.slit_stall = stall;
         p.cha_ko.gamma = gamma;
         let mut r = Resolver::new(&g, p.clone()).unwrap();
         let s = r.run(|_| {}).unwrap();
