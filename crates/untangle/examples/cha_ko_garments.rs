@@ -66,11 +66,18 @@ fn main() {
         common::loop_params(&mut p);
         // Ablations: CHAKO_REVOKE, CHAKO_LAST_RESORT=0, CHAKO_AVOID_LOOP_PULL=1,
         // CHAKO_AVOID_LOOP_PULL_START=1, CHAKO_ZONE_SOFT
-        // (the simulator's soft impact-zone levels; 0 = rigid zones).
+        // (the simulator's soft impact-zone levels; 0 = rigid zones), CHAKO_SLIT=1 (slit ridges),
+        // CHAKO_SLIT_STALL.
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
         common::trial_params(&mut p.cha_ko);
         if let Some(v) = env("CHAKO_REVOKE") {
             p.cha_ko.revoke_levels_per_step = v as u32;
+        }
+        if let Some(v) = env("CHAKO_SLIT") {
+            p.slit_ridges = v != 0.0;
+        }
+        if let Some(v) = env("CHAKO_SLIT_STALL") {
+            p.slit_stall = v as usize;
         }
         if let Some(v) = env("CHAKO_LAST_RESORT") {
             p.cha_ko.loop_target_last_resort = v != 0.0;

@@ -92,6 +92,41 @@ fn cross_resolves_with_the_regionless_fallback() {
 }
 
 #[test]
+fn cross_resolves_with_slit_ridges() {
+    // CROSS: the BB half becomes a slit (the path runs out to loop vertex 0 and back through
+    // the same triangles around a fold of the other wedge; no region, no red vertex). With
+    // `slit_ridges` (ours, off by default, `methods::cha_ko::slit`) the fold's ridge vertices
+    // are coloured red when that happens and pulled back across: CROSS resolves at one and two
+    // subdivision levels and for gamma 0.7-0.9, without the regionless fallback, after a stall
+    // of 10 steps (`slit_stall`, its default) or at once.
+    for (size, gamma, stall) in [
+        (2, 0.8, 10),
+        (1, 0.8, 10),
+        (2, 0.7, 10),
+        (2, 0.9, 10),
+        (2, 0.8, 0),
+    ] {
+        let scene = untangle::scenes::by_name("cross", Some(size), 1).unwrap();
+        let g = scene_garment(&scene);
+        let mut p = params(400);
+        p.slit_ridges = true;
+        p.slit_stall = stall;
+        p.cha_ko.gamma = gamma;
+        let mut r = Resolver::new(&g, p.clone()).unwrap();
+        let s = r.run(|_| {}).unwrap();
+        assert_eq!(
+            s.outcome,
+            Outcome::Resolved,
+            "size {size} gamma {gamma}: {s:?}"
+        );
+        assert!(r.history().iter().any(|h| h.slit_red > 0));
+        assert!(r.history().iter().all(|h| h.regionless_red == 0));
+        // Independently checked, uv restored.
+        resolves_with(&g, p);
+    }
+}
+
+#[test]
 fn the_regionless_fallback_colours_the_corners_of_the_pinched_fold() {
     // Oracle: CROSS with the fallback off stalls after ~60 steps with every tanglement
     // regionless (a BB path with an empty cut, no red vertex). The fallback's red set must then
@@ -165,7 +200,8 @@ fn bli_case_resolves_beyond_the_paper() {
 
 #[test]
 fn unresolved_cases_stop_and_say_where() {
-    // BLI without BLI regions (the paper's method alone) and CROSS with the defaults:
+    // BLI without BLI regions (the paper's method alone) and CROSS with the defaults (it
+    // resolves with `slit_ridges`, off by default; see `cross_resolves_with_slit_ridges`):
     // operations saturate, are abandoned and retried, and the loop stops as stuck with every
     // saturation reported by vertex and position.
     for (name, bli_regions) in [("bli", false), ("cross", true)] {

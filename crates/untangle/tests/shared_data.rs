@@ -99,6 +99,29 @@ fn arcsim_meshes_read_and_analyse() {
     assert_eq!(n, 9);
 }
 
+/// The Untangling26 CROSS unit resolves with slit ridges (`methods::cha_ko::slit`, off by
+/// default) instead of the regionless fallback: its slit's ridge is pulled back across it.
+#[test]
+fn untangling26_cross_resolves_with_slit_ridges() {
+    use untangle::analysis::{analyze, AnalysisMesh};
+    use untangle::methods::cha_ko::{Outcome, ResolveParams, Resolver};
+    let Some(shared) = shared() else { return };
+    let m = read_obj(&shared.join("data/untangling26-units/unit_Cross.obj")).unwrap();
+    let g = Garment::new(m).unwrap();
+    let p = ResolveParams {
+        max_steps: 400,
+        slit_ridges: true,
+        ..Default::default()
+    };
+    let mut r = Resolver::new(&g, p).unwrap();
+    let s = r.run(|_| {}).unwrap();
+    assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");
+    assert!(r.history().iter().any(|h| h.slit_red > 0));
+    let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
+    assert!(analyze(&am, r.simulator().positions()).unwrap().is_clean());
+    assert_eq!(r.chako().current_uv(), r.chako().original_uv());
+}
+
 /// The Cha & Ko loop on the third-party units (no `vt`: the BIBI unit's best-fitting plane
 /// squashes a triangle to a sliver, so it is unfolded with its own edge lengths): every unit
 /// ends intersection-free by an independent analysis with its uv restored; CROSS with the

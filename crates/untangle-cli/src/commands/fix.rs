@@ -108,6 +108,17 @@ pub struct Args {
     /// disables it. Try 30 when a run ends stuck with no red vertex left.
     #[arg(long, default_value_t = 0)]
     pub regionless_after: usize,
+    /// Slit ridges (ours, off by default): once no vertex is red and the loop has stalled for
+    /// `--slit-stall` steps, colour red the ridge vertices of a fold that pokes through a
+    /// partitioning path running out and back through the same triangles (no region), so the
+    /// fold is pulled back across it. Resolves CROSS; costs the exploded handkerchief a few
+    /// steps (docs/cha-ko.md, "Slits").
+    #[arg(long)]
+    pub slit_ridges: bool,
+    /// With `--slit-ridges`: steps without a new lowest count of intersecting pairs before it
+    /// acts (0: at once).
+    #[arg(long, default_value_t = ResolveParams::default().slit_stall)]
+    pub slit_stall: usize,
     /// Levels (scalings by 1/gamma) an operation that is no longer warranted is revoked per
     /// step (Alg. 1 line 6 revokes by 1/gamma, i.e. 1, the default). More restores the uv
     /// sooner, so neighbours waiting for a fan in its original position start earlier: with 3
@@ -152,6 +163,8 @@ impl Args {
         p.max_steps = self.max_steps;
         p.stuck_steps = self.stuck_steps;
         p.regionless_after = self.regionless_after;
+        p.slit_ridges = self.slit_ridges;
+        p.slit_stall = self.slit_stall;
         p.cha_ko.revoke_levels_per_step = self.revoke_levels;
         p.analysis.bli_regions_red = !self.no_bli_regions;
         match self.integrator {
@@ -414,6 +427,7 @@ fn step_json(s: &LoopStep) -> serde_json::Value {
         "intersecting_pairs": s.intersecting_pairs,
         "tanglements": s.tanglements,
         "regionless_red": s.regionless_red,
+        "slit_red": s.slit_red,
         "pulls": s.uv.pulls_started + s.uv.pulls_continued,
         "pulls_started": s.uv.pulls_started,
         "shrinks": s.uv.shrinks_started + s.uv.shrinks_continued,

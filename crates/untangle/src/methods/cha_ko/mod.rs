@@ -34,6 +34,7 @@ pub mod report;
 pub mod resolve;
 pub mod schedule;
 pub mod seams;
+pub mod slit;
 pub mod state;
 pub mod tit;
 pub mod trial;
