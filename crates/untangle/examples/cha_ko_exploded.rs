@@ -46,7 +46,7 @@ fn main() {
         p.max_steps = max_steps as usize;
         // UNTANGLE_INTEGRATOR=projective: projective dynamics (see `common`).
         common::loop_params(&mut p);
-        // Parameter experiments: CHAKO_SLIT=1 (slit ridges), CHAKO_SLIT_STALL, CHAKO_REGIONLESS_AFTER (0 = off), CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA,
+        // Parameter experiments: CHAKO_SLIT=0|1 (slit ridges, on by default), CHAKO_SLIT_STALL, CHAKO_REGIONLESS_AFTER (0 = off), CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA,
         // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT,
         // CHAKO_ZONE_SPIN (0: impact zones translate), CHAKO_ZONE_SOFT (soft zone levels),
         // CHAKO_AVOID_LOOP_PULL_START, CHAKO_TRIAL (retries of the trial step, 0 = off),

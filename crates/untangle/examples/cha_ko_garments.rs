@@ -66,7 +66,7 @@ fn main() {
         common::loop_params(&mut p);
         // Ablations: CHAKO_REVOKE, CHAKO_LAST_RESORT=0, CHAKO_AVOID_LOOP_PULL=1,
         // CHAKO_AVOID_LOOP_PULL_START=1, CHAKO_ZONE_SOFT
-        // (the simulator's soft impact-zone levels; 0 = rigid zones), CHAKO_SLIT=1 (slit ridges),
+        // (the simulator's soft impact-zone levels; 0 = rigid zones), CHAKO_SLIT=0|1 (slit ridges, on by default),
         // CHAKO_SLIT_STALL.
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
         common::trial_params(&mut p.cha_ko);

@@ -1,7 +1,7 @@
 //! Diagnostic: runs the Cha & Ko loop on a named scene and, at the listed steps, prints the
 //! red* triangles, their red edges, the crossings they take part in and the operations.
-//! `CHAKO_SLIT=1` runs the loop with slit ridges (`ResolveParams::slit_ridges`; the printed
-//! colouring is the plain analysis' either way).
+//! `CHAKO_SLIT=0` runs the loop without slit ridges (`ResolveParams::slit_ridges`, on by
+//! default; the printed colouring is the plain analysis' either way).
 //!
 //! `cargo run --release -p untangle --example cha_ko_inspect -- cross 20,60,100 [seed]`
 use untangle::analysis::{analyze, AnalysisMesh};
@@ -24,7 +24,9 @@ fn main() {
     let g = Garment::new(AnalysisMesh::merge_cloth(&scene.meshes).unwrap()).unwrap();
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();
-    p.slit_ridges = std::env::var("CHAKO_SLIT").is_ok_and(|v| v != "0");
+    if let Ok(v) = std::env::var("CHAKO_SLIT") {
+        p.slit_ridges = v != "0";
+    }
     let mut r = Resolver::new(&g, p).unwrap();
     let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
     let topo = &g.topology;

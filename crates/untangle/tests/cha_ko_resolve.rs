@@ -61,12 +61,11 @@ fn closed_rudimentary_case_resolves() {
 
 #[test]
 fn rudimentary_cases_resolve() {
-    // Cha & Ko Sec. 9.1, Fig. 13 (lead's generators): CLOSED, EIGHT, LL, BIBI and BBII
-    // resolve with the defaults; CROSS with the regionless fallback, see
-    // `cross_resolves_with_the_regionless_fallback`. LL needs pulls only across cut edges
+    // Cha & Ko Sec. 9.1, Fig. 13 (lead's generators): all six resolve with the defaults; CROSS
+    // through slit ridges (ours, on by default; see `cross_resolves_with_slit_ridges`). LL needs pulls only across cut edges
     // (`Params::pull_across_cut_edges`): its path turns into a BLI whose cone region's rim
     // vertices were pulled in vain for 250 steps without the rule.
-    for name in ["closed", "eight", "ll", "bibi", "bbii"] {
+    for name in ["closed", "eight", "ll", "cross", "bibi", "bbii"] {
         let scene = untangle::scenes::by_name(name, None, 1).unwrap();
         let s = resolves(&scene_garment(&scene), 400);
         assert!(s.finesse.rows[0].count > 0, "{name}");
@@ -77,12 +76,14 @@ fn rudimentary_cases_resolve() {
 fn cross_resolves_with_the_regionless_fallback() {
     // CROSS: its BB half becomes a fold pinched through itself (an empty cut: no region, no red
     // vertex) and the paper's operations stall; the regionless fallback (ours, off by default,
-    // `methods::cha_ko::regionless`) after 30 stalled steps ends it.
+    // `methods::cha_ko::regionless`) after 30 stalled steps ends it (slit ridges, which end it
+    // by default, turned off here).
     let g = scene_garment(&untangle::scenes::by_name("cross", None, 1).unwrap());
     let (am, pos0) = AnalysisMesh::single(&g.mesh).unwrap();
     assert!(!analyze(&am, &pos0).unwrap().is_clean());
     let mut p = params(400);
     p.regionless_after = 30;
+    p.slit_ridges = false;
     let mut r = Resolver::new(&g, p).unwrap();
     let s = r.run(|_| {}).unwrap();
     assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");
@@ -95,7 +96,7 @@ fn cross_resolves_with_the_regionless_fallback() {
 fn cross_resolves_with_slit_ridges() {
     // CROSS: the BB half becomes a slit (the path runs out to loop vertex 0 and back through
     // the same triangles around a fold of the other wedge; no region, no red vertex). With
-    // `slit_ridges` (ours, off by default, `methods::cha_ko::slit`) the fold's ridge vertices
+    // `slit_ridges` (ours, on by default, `methods::cha_ko::slit`) the fold's ridge vertices
     // are coloured red when that happens and pulled back across: CROSS resolves at one and two
     // subdivision levels and for gamma 0.7-0.9, without the regionless fallback, after a stall
     // of 10 steps (`slit_stall`, its default) or at once.
@@ -136,6 +137,7 @@ fn the_regionless_fallback_colours_the_corners_of_the_pinched_fold() {
     let g = scene_garment(&untangle::scenes::by_name("cross", None, 1).unwrap());
     let mut p = params(80);
     p.regionless_after = 0;
+    p.slit_ridges = false;
     let mut r = Resolver::new(&g, p).unwrap();
     r.run(|_| {}).unwrap();
     let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
@@ -200,14 +202,15 @@ fn bli_case_resolves_beyond_the_paper() {
 
 #[test]
 fn unresolved_cases_stop_and_say_where() {
-    // BLI without BLI regions (the paper's method alone) and CROSS with the defaults (it
-    // resolves with `slit_ridges`, off by default; see `cross_resolves_with_slit_ridges`):
+    // BLI without BLI regions (the paper's method alone) and CROSS without slit ridges (it
+    // resolves with them, the default; see `cross_resolves_with_slit_ridges`):
     // operations saturate, are abandoned and retried, and the loop stops as stuck with every
     // saturation reported by vertex and position.
     for (name, bli_regions) in [("bli", false), ("cross", true)] {
         let g = scene_garment(&untangle::scenes::by_name(name, None, 1).unwrap());
         let mut p = params(400);
         p.analysis.bli_regions_red = bli_regions;
+        p.slit_ridges = false;
         p.stuck_steps = 60;
         let mut r = Resolver::new(&g, p).unwrap();
         let s = r.run(|_| {}).unwrap();

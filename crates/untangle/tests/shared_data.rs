@@ -99,7 +99,7 @@ fn arcsim_meshes_read_and_analyse() {
     assert_eq!(n, 9);
 }
 
-/// The Untangling26 CROSS unit resolves with slit ridges (`methods::cha_ko::slit`, off by
+/// The Untangling26 CROSS unit resolves with slit ridges (`methods::cha_ko::slit`, on by
 /// default) instead of the regionless fallback: its slit's ridge is pulled back across it.
 #[test]
 fn untangling26_cross_resolves_with_slit_ridges() {
@@ -110,7 +110,6 @@ fn untangling26_cross_resolves_with_slit_ridges() {
     let g = Garment::new(m).unwrap();
     let p = ResolveParams {
         max_steps: 400,
-        slit_ridges: true,
         ..Default::default()
     };
     let mut r = Resolver::new(&g, p).unwrap();

@@ -108,14 +108,14 @@ pub struct Args {
     /// disables it. Try 30 when a run ends stuck with no red vertex left.
     #[arg(long, default_value_t = 0)]
     pub regionless_after: usize,
-    /// Slit ridges (ours, off by default): once no vertex is red and the loop has stalled for
-    /// `--slit-stall` steps, colour red the ridge vertices of a fold that pokes through a
-    /// partitioning path running out and back through the same triangles (no region), so the
-    /// fold is pulled back across it. Resolves CROSS; costs the exploded handkerchief a few
-    /// steps (docs/cha-ko.md, "Slits").
+    /// Turn off slit ridges (ours, on by default: once no vertex is red and the loop has
+    /// stalled for `--slit-stall` steps, the ridge vertices of a fold that pokes through a
+    /// partitioning path running out and back through the same triangles (no region) are
+    /// coloured red, so the fold is pulled back across it; this resolves CROSS; docs/cha-ko.md,
+    /// "Slits").
     #[arg(long)]
-    pub slit_ridges: bool,
-    /// With `--slit-ridges`: steps without a new lowest count of intersecting pairs before it
+    pub no_slit_ridges: bool,
+    /// Slit ridges: steps without a new lowest count of intersecting pairs before it
     /// acts (0: at once).
     #[arg(long, default_value_t = ResolveParams::default().slit_stall)]
     pub slit_stall: usize,
@@ -163,7 +163,7 @@ impl Args {
         p.max_steps = self.max_steps;
         p.stuck_steps = self.stuck_steps;
         p.regionless_after = self.regionless_after;
-        p.slit_ridges = self.slit_ridges;
+        p.slit_ridges = !self.no_slit_ridges;
         p.slit_stall = self.slit_stall;
         p.cha_ko.revoke_levels_per_step = self.revoke_levels;
         p.analysis.bli_regions_red = !self.no_bli_regions;

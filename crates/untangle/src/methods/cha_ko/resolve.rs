@@ -45,13 +45,14 @@ pub struct ResolveParams {
     /// 30 it resolved 6 of 7 CROSS runs, but on `cross` only for values 25-40, and it made 2 of
     /// 12 exploded-handkerchief runs stuck (docs/cha-ko.md).
     pub regionless_after: usize,
-    /// Slit ridges (ours, [`super::slit`]; off by default): in every step in which the cloth
+    /// Slit ridges (ours, [`super::slit`]; on by default): in every step in which the cloth
     /// intersects, no vertex is red and `slit_stall` steps have passed without a new lowest
     /// count of intersecting pairs, the ridge vertices of partitioning paths that run out and
     /// back through the same triangles (no region) are coloured red, so the fold that pokes
     /// through the slit is pulled back across it. With it CROSS and the Untangling26 Cross unit
-    /// resolve; it is off because the exploded handkerchief's median steps are not kept (seeds
-    /// 1-100: 99 / 100 resolved against 98, median 113 against 111; docs/cha-ko.md, "Slits").
+    /// resolve, and the exploded handkerchief resolves 99 / 100 seeds (1-100) against 98 without
+    /// it, for a median of 113 steps against 111 (docs/cha-ko.md, "Slits"). `false` gives the
+    /// loop of session 20.
     pub slit_ridges: bool,
     /// With `slit_ridges`: act only after this many steps without a new lowest count of
     /// intersecting pairs (default 10; 0: as soon as a slit is seen with no vertex red, which
@@ -99,7 +100,7 @@ impl Default for ResolveParams {
             stuck_steps: 100,
             uv_update: true,
             regionless_after: 0,
-            slit_ridges: false,
+            slit_ridges: true,
             slit_stall: 10,
             analysis: crate::analysis::Options {
                 bli_regions_red: true,
