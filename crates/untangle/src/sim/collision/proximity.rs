@@ -31,8 +31,6 @@ pub struct Near {
     close: bool,
     /// Whether it received an impulse in the sweeps.
     impulsed: bool,
-    /// 1 + the number of impulses applied when the sweeps last tested it (0: not yet).
-    tested_at: u32,
 }
 
 /// Proximity's verdict on one candidate pair at the velocities the step starts with
@@ -328,7 +326,6 @@ pub fn screen_pair(
             active,
             close,
             impulsed: false,
-            tested_at: 0,
         }),
         start,
         ccd_settled,
@@ -465,10 +462,12 @@ fn resting_of(near: &NearList, within_reach: bool) -> Vec<Pair> {
 /// applied, and the list with the dormant pairs it had to evaluate and, per [`Near`], whether it
 /// received an impulse.
 ///
-/// A pair's relative normal velocity depends only on its nodes' velocities, so a pair that got
-/// no impulse is tested again only once one of them has changed since (per node, the count of
-/// impulses when it last changed; per pair, the count when it was last tested): the same
-/// impulses in the same order as testing every pair in every sweep (test
+/// A pair's relative normal velocity depends only on its nodes' velocities, and a dormant pair
+/// is evaluated once a node of it has moved. So a sweep visits, in candidate order, only the
+/// pairs that can need it: every active pair in the first sweep, then a pair (active, or
+/// dormant) once an impulse changed a node of it since it was last visited (this sweep if
+/// its slot comes later, else the next one; per node, its pairs). The same impulses in the same
+/// order as visiting every pair in every sweep (test
 /// `lazy_screening_repels_exactly_like_eager_screening`).
 fn sweeps(
     scene: &Scene,
@@ -478,93 +477,146 @@ fn sweeps(
     policy: &dyn ContactPolicy,
 ) -> (usize, NearList) {
     debug_assert!(v == v_start);
-    // Per node, the number of impulses applied when its velocity last changed (0: never).
-    let mut changed_at = vec![0u32; v.len()];
-    // Whether a cloth node of `nodes` changed at impulse `since` or later.
-    let changed_since = |changed_at: &[u32], nodes: &[u32; 4], since: u32| {
-        nodes
-            .iter()
-            .any(|&k| k & super::OBSTACLE == 0 && changed_at[k as usize] >= since)
+    // Slot `s` of part `p` is number `offsets[p] + s` in candidate order.
+    let mut offsets = Vec::with_capacity(near.parts.len() + 1);
+    let mut total = 0usize;
+    for part in &near.parts {
+        offsets.push(total);
+        total += part.slots.len();
+    }
+    offsets.push(total);
+    // The nodes of a slot that can need a visit (active or dormant).
+    let watched = |part: &Part, index: u32| -> Option<[u32; 4]> {
+        if index == FAR {
+            None
+        } else if index & DORMANT != 0 {
+            Some(part.dormant[(index & !DORMANT) as usize])
+        } else {
+            let n = &part.nears[index as usize];
+            n.active.then_some(n.nodes)
+        }
     };
+    // Per cloth node, its watched slots (`slots_of[first[k]..first[k + 1]]`); the first sweep
+    // visits the active pairs.
+    let words = total.div_ceil(64);
+    let (mut now, mut next) = (vec![0u64; words], vec![0u64; words]);
+    let mut first = vec![0u32; v.len() + 1];
+    for part in &near.parts {
+        for &(_, index) in &part.slots {
+            for k in watched(part, index).into_iter().flatten() {
+                if k & super::OBSTACLE == 0 {
+                    first[k as usize + 1] += 1;
+                }
+            }
+        }
+    }
+    for k in 0..v.len() {
+        first[k + 1] += first[k];
+    }
+    let mut fill = first.clone();
+    let mut slots_of = vec![0u32; first[v.len()] as usize];
+    for (p, part) in near.parts.iter().enumerate() {
+        for (s, &(_, index)) in part.slots.iter().enumerate() {
+            let g = offsets[p] + s;
+            if let Some(nodes) = watched(part, index) {
+                if index & DORMANT == 0 {
+                    now[g / 64] |= 1 << (g % 64);
+                }
+                for k in nodes {
+                    if k & super::OBSTACLE == 0 {
+                        slots_of[fill[k as usize] as usize] = g as u32;
+                        fill[k as usize] += 1;
+                    }
+                }
+            }
+        }
+    }
     let mut applied = 0;
     for _ in 0..SWEEPS {
         let mut any = false;
-        for part in &mut near.parts {
-            for s in 0..part.slots.len() {
-                let (pair, mut index) = part.slots[s];
+        let (mut p, mut w) = (0, 0);
+        while w < words {
+            if now[w] == 0 {
+                w += 1;
+                continue;
+            }
+            let g = w * 64 + now[w].trailing_zeros() as usize;
+            now[w] &= now[w] - 1;
+            while offsets[p + 1] <= g {
+                p += 1;
+            }
+            let part = &mut near.parts[p];
+            let s = g - offsets[p];
+            let (pair, mut index) = part.slots[s];
+            if index == FAR {
+                continue;
+            }
+            if index & DORMANT != 0 {
+                // A node moved: the pair's verdict as eager screening would have given it.
+                let nodes = part.dormant[(index & !DORMANT) as usize];
+                let eps = scene
+                    .thickness(pair, policy)
+                    .expect("dormant pairs have a thickness");
+                let (x, vel, stats) = pair_inputs(scene, v_start, &nodes);
+                index = match screen_pair(scene, pair, eps, &nodes, &x, &vel, &stats, false, 0.0).0
+                {
+                    Verdict::Near(n) => {
+                        part.nears.push(n);
+                        (part.nears.len() - 1) as u32
+                    }
+                    _ => FAR,
+                };
+                part.slots[s].1 = index;
                 if index == FAR {
                     continue;
                 }
-                if index & DORMANT != 0 {
-                    if applied == 0 {
-                        // No velocity has changed yet.
-                        continue;
-                    }
-                    let nodes = part.dormant[(index & !DORMANT) as usize];
-                    if !changed_since(&changed_at, &nodes, 1) {
-                        continue;
-                    }
-                    // A node moved: the pair's verdict as eager screening would have given it.
-                    let eps = scene
-                        .thickness(pair, policy)
-                        .expect("dormant pairs have a thickness");
-                    let (x, vel, stats) = pair_inputs(scene, v_start, &nodes);
-                    index =
-                        match screen_pair(scene, pair, eps, &nodes, &x, &vel, &stats, false, 0.0).0
-                        {
-                            Verdict::Near(n) => {
-                                part.nears.push(n);
-                                (part.nears.len() - 1) as u32
-                            }
-                            _ => FAR,
-                        };
-                    part.slots[s].1 = index;
-                    if index == FAR {
-                        continue;
-                    }
-                }
-                let n = &mut part.nears[index as usize];
-                if !n.active {
-                    continue;
-                }
-                // Tested before, and none of its nodes changed since: still no impulse.
-                if n.tested_at != 0 && !changed_since(&changed_at, &n.nodes, n.tested_at) {
-                    continue;
-                }
-                n.tested_at = applied + 1;
-                let g = &n.geom;
-                let vn: f64 = (0..4)
-                    .map(|k| g.weights[k] * g.normal.dot(&scene.velocity(v, n.nodes[k])))
-                    .sum();
-                if vn >= n.target - 1e-12 * n.target.abs() {
-                    continue;
-                }
-                if let Some(dv) = impulse(
-                    scene,
-                    v,
-                    &n.nodes,
-                    &g.weights,
-                    &g.normal,
-                    n.target - vn,
-                    n.mu,
-                ) {
-                    applied += 1;
-                    for k in 0..4 {
-                        if n.nodes[k] & super::OBSTACLE == 0 {
-                            v[n.nodes[k] as usize] += dv[k];
-                            changed_at[n.nodes[k] as usize] = applied;
+            }
+            let n = &mut part.nears[index as usize];
+            if !n.active {
+                continue;
+            }
+            let g_ = &n.geom;
+            let vn: f64 = (0..4)
+                .map(|k| g_.weights[k] * g_.normal.dot(&scene.velocity(v, n.nodes[k])))
+                .sum();
+            if vn >= n.target - 1e-12 * n.target.abs() {
+                continue;
+            }
+            if let Some(dv) = impulse(
+                scene,
+                v,
+                &n.nodes,
+                &g_.weights,
+                &g_.normal,
+                n.target - vn,
+                n.mu,
+            ) {
+                for k in 0..4 {
+                    let node = n.nodes[k];
+                    if node & super::OBSTACLE == 0 {
+                        v[node as usize] += dv[k];
+                        // Its pairs: visited later in this sweep, or in the next one.
+                        let range =
+                            first[node as usize] as usize..first[node as usize + 1] as usize;
+                        for &j in &slots_of[range] {
+                            let j = j as usize;
+                            let bits = if j > g { &mut now } else { &mut next };
+                            bits[j / 64] |= 1 << (j % 64);
                         }
                     }
-                    any = true;
-                    n.impulsed = true;
                 }
+                applied += 1;
+                any = true;
+                n.impulsed = true;
             }
         }
         if !any {
             break;
         }
+        // `now` is all clear: the next sweep's slots become this one's.
+        std::mem::swap(&mut now, &mut next);
     }
-    (applied as usize, near)
+    (applied, near)
 }
 
 #[cfg(test)]
@@ -760,20 +812,29 @@ mod tests {
     /// identical, bit for bit.
     #[test]
     fn lazy_screening_repels_exactly_like_eager_screening() {
-        let (mut woke, mut in_plane) = (0, 0);
-        for seed in 0..8u64 {
+        let (mut woke, mut in_plane, mut busy_sweeps) = (0, 0, 0);
+        // (seed, layers, layer gap, share of kicked vertices, largest kick): two layers with
+        // sparse kicks wake dormant pairs; three layers 4 mm apart (within twice the
+        // thickness), the outer ones squeezing the middle one, chain impulses over sweeps.
+        let cases = (0..8u64)
+            .map(|seed| (seed, 2, 7e-3, 0.05, 0.8))
+            .chain((8..12u64).map(|seed| (seed, 3, 4e-3, 0.5, 2.0)));
+        for (seed, layers, layer_gap, kicked, kick_max) in cases {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            // Two wavy sheets 7 mm apart (thickness 3 mm: the layers' pairs are beyond twice
-            // the thickness), moving together with a smooth swing; 5 % of the vertices get a
-            // random kick across the gap (impulses that wake dormant pairs).
+            // Wavy sheets `layer_gap` apart (thickness 3 mm: at 7 mm the layers' pairs are
+            // beyond twice the thickness), moving together with a smooth swing; a share of the
+            // vertices gets a random kick across the gap (with three layers, the outer ones
+            // towards the middle one).
             let a = crate::scenes::handkerchief("a", 12, 12, 0.2, 0.2, |uv: Vec2| {
                 Vec3::new(uv.x, 0.01 * (30.0 * uv.x).sin() * (20.0 * uv.y).cos(), uv.y)
             });
             let na = a.positions.len() as u32;
-            let mut positions = a.positions.clone();
-            positions.extend(a.positions.iter().map(|p| p + Vec3::new(0.0, 7e-3, 0.0)));
-            let mut triangles = a.triangles.clone();
-            triangles.extend(a.triangles.iter().map(|t| t.map(|k| k + na)));
+            let (mut positions, mut triangles) = (Vec::new(), Vec::new());
+            for l in 0..layers {
+                let shift = Vec3::new(0.0, layer_gap * l as f64, 0.0);
+                positions.extend(a.positions.iter().map(|p| p + shift));
+                triangles.extend(a.triangles.iter().map(|t| t.map(|k| k + na * l)));
+            }
             let sheet = crate::mesh::Mesh::new("two", positions, triangles).unwrap();
             let topo = Topology::new(&sheet).unwrap();
             let n = sheet.positions.len();
@@ -791,9 +852,18 @@ mod tests {
             let swing = Vec3::new(rng.random_range(-1.0..1.0), 0.3, 0.5);
             let v0: Vec<Vec3> = x0
                 .iter()
-                .map(|p| {
-                    let kick = if rng.random_bool(0.05) {
-                        Vec3::new(0.0, rng.random_range(-0.8..0.8), 0.0)
+                .enumerate()
+                .map(|(i, p)| {
+                    let kick = if rng.random_bool(kicked) {
+                        // Squeezing: the bottom layer up, the top one down (of three).
+                        let l = i as u32 / na;
+                        let k: f64 = rng.random_range(-kick_max..kick_max);
+                        let k = match (layers, l) {
+                            (3, 0) => k.abs(),
+                            (3, 2) => -k.abs(),
+                            _ => k,
+                        };
+                        Vec3::new(0.0, k, 0.0)
                     } else {
                         Vec3::zeros()
                     };
@@ -820,7 +890,8 @@ mod tests {
                 let (ia, ra) = repel_screened(&scene, &mut va, &v0, eager, &policy, within_reach);
                 // Against the plain Gauss-Seidel sweeps (every pair tested in every sweep).
                 let mut vp = v0.clone();
-                let (ip, rp) = plain_sweeps(&scene, &mut vp, plain, within_reach);
+                let (ip, rp, busy) = plain_sweeps(&scene, &mut vp, plain, within_reach);
+                busy_sweeps = busy_sweeps.max(busy);
                 assert_eq!(ia, ip, "seed {seed}");
                 assert_eq!(ra, rp, "seed {seed}");
                 assert!(
@@ -833,7 +904,10 @@ mod tests {
                         .near;
                 let dormant_before = lazy_list.dormant();
                 if !within_reach {
-                    assert!(dormant_before > 0, "seed {seed}: no dormant pair");
+                    assert!(
+                        dormant_before > 0 || layer_gap < 5e-3,
+                        "seed {seed}: no dormant pair"
+                    );
                     // Edge pairs made dormant by the in-plane axes alone (the axis gap would
                     // have needed their closest points).
                     for &(p, i) in lazy_list.slots() {
@@ -860,22 +934,145 @@ mod tests {
         }
         assert!(woke > 0, "no dormant pair was ever woken");
         assert!(
+            busy_sweeps >= 3,
+            "impulses in {busy_sweeps} sweeps: too few to test"
+        );
+        assert!(
             in_plane > 0,
             "no edge pair was made dormant by the in-plane axes"
         );
     }
 
+    /// The sweeps' visiting (a pair only once a node of it changed since its last visit, this
+    /// sweep or the next) against [`plain_sweeps`] (every active pair in every sweep), on
+    /// random pair lists over few nodes (pairs share nodes with many others, so impulses chain
+    /// within and across sweeps, and often still change velocities in the last sweep):
+    /// the same impulses, velocities (bit for bit) and resting contacts. Some nodes are pinned
+    /// (an impulse that changes no velocity).
+    #[test]
+    fn sweeps_apply_the_impulses_of_plain_gauss_seidel() {
+        let (mut chained, mut cut) = (0, 0);
+        for seed in 0..1000u64 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let n = rng.random_range(5..60usize);
+            let x0 = vec![Vec3::zeros(); n];
+            let inv_mass: Vec<f64> = (0..n)
+                .map(|_| {
+                    if rng.random_bool(0.1) {
+                        0.0
+                    } else {
+                        rng.random_range(0.5..2.0)
+                    }
+                })
+                .collect();
+            let obstacles = Default::default();
+            let scene = scene_of(&x0, &[], &[], &[], &obstacles, &inv_mass);
+            let rv = |rng: &mut ChaCha8Rng| {
+                Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                )
+            };
+            let v0: Vec<Vec3> = (0..n).map(|_| rv(&mut rng)).collect();
+            let mut nears = Vec::new();
+            let count = rng.random_range(1..60u32);
+            // Some lists with few impulses in the first sweep (chains start later).
+            let low = if rng.random_bool(0.5) { -0.5 } else { -2.0 };
+            for i in 0..count {
+                let mut nodes = [0u32; 4];
+                let mut k = 0;
+                while k < 4 {
+                    let c = rng.random_range(0..n as u32);
+                    if !nodes[..k].contains(&c) {
+                        nodes[k] = c;
+                        k += 1;
+                    }
+                }
+                let (b0, b1): (f64, f64) = (rng.random_range(0.0..1.0), rng.random_range(0.0..1.0));
+                let (b0, b1) = if b0 + b1 > 1.0 {
+                    (1.0 - b0, 1.0 - b1)
+                } else {
+                    (b0, b1)
+                };
+                let normal = rv(&mut rng).try_normalize(1e-9).unwrap_or(Vec3::z());
+                nears.push(Near {
+                    pair: Pair {
+                        kind: if i % 2 == 0 {
+                            PairKind::VertexTriangle
+                        } else {
+                            PairKind::EdgeEdge
+                        },
+                        a: i,
+                        b: i,
+                    },
+                    nodes,
+                    geom: Closest {
+                        distance: 1e-3,
+                        normal,
+                        weights: [1.0, -b0, -b1, -(1.0 - b0 - b1)],
+                    },
+                    target: rng.random_range(low..0.5),
+                    mu: 0.1,
+                    active: rng.random_bool(0.9),
+                    close: rng.random_bool(0.3),
+                    impulsed: false,
+                });
+            }
+            for within_reach in [false, true] {
+                let mut list = NearList::default();
+                for near in &nears {
+                    list.push(near.pair, Verdict::Near(Near { ..*near }));
+                }
+                let mut va = v0.clone();
+                let (ia, ra) =
+                    repel_screened(&scene, &mut va, &v0, list, &NoContacts, within_reach);
+                let mut vp = v0.clone();
+                let copies = nears.iter().map(|near| Near { ..*near }).collect();
+                let (ip, rp, busy) = plain_sweeps(&scene, &mut vp, copies, within_reach);
+                assert_eq!(ia, ip, "seed {seed}");
+                assert_eq!(ra, rp, "seed {seed}");
+                assert!(
+                    va == vp,
+                    "seed {seed}: velocities differ from the plain sweeps"
+                );
+                chained += (busy >= 3) as usize;
+                cut += (busy == SWEEPS) as usize;
+            }
+        }
+        assert!(
+            chained > 50 && cut > 10,
+            "{chained} chained, {cut} cut: too few to test"
+        );
+    }
+
+    /// A policy for lists without dormant pairs (never asked).
+    struct NoContacts;
+
+    impl ContactPolicy for NoContacts {
+        fn max_thickness(&self) -> f64 {
+            0.0
+        }
+        fn vertex_triangle(&self, _: u32, _: u32) -> crate::sim::policy::Contact {
+            unreachable!("no dormant pair")
+        }
+        fn edge_edge(&self, _: u32, _: u32) -> crate::sim::policy::Contact {
+            unreachable!("no dormant pair")
+        }
+    }
+
     /// Plain Gauss-Seidel sweeps over the close or active pairs `nears` (in candidate order):
     /// every active pair tested in every sweep, until a sweep applies no impulse. Returns the
-    /// impulses applied and the resting contacts (as [`resting_of`] defines them).
+    /// impulses applied, the resting contacts (as [`resting_of`] defines them) and the number
+    /// of sweeps that applied impulses.
     fn plain_sweeps(
         scene: &Scene,
         v: &mut [Vec3],
         nears: Vec<Near>,
         within_reach: bool,
-    ) -> (usize, Vec<Pair>) {
+    ) -> (usize, Vec<Pair>, usize) {
         let mut hit = vec![false; nears.len()];
-        let mut applied = 0;
+        let (mut applied, mut busy) = (0, 0);
         for _ in 0..SWEEPS {
             let mut any = false;
             for (i, n) in nears.iter().enumerate() {
@@ -912,6 +1109,7 @@ mod tests {
             if !any {
                 break;
             }
+            busy += 1;
         }
         let resting = nears
             .iter()
@@ -922,7 +1120,7 @@ mod tests {
             })
             .map(|(n, _)| n.pair)
             .collect();
-        (applied, resting)
+        (applied, resting, busy)
     }
 
     /// The definition of proximity's verdict, with every pair's closest points (no bound, no
@@ -956,7 +1154,6 @@ mod tests {
             active,
             close,
             impulsed: false,
-            tested_at: 0,
         })
     }
 }
