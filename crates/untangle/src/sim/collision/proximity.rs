@@ -31,6 +31,8 @@ pub struct Near {
     close: bool,
     /// Whether it received an impulse in the sweeps.
     impulsed: bool,
+    /// 1 + the number of impulses applied when the sweeps last tested it (0: not yet).
+    tested_at: u32,
 }
 
 /// Proximity's verdict on one candidate pair at the velocities the step starts with
@@ -326,6 +328,7 @@ pub fn screen_pair(
             active,
             close,
             impulsed: false,
+            tested_at: 0,
         }),
         start,
         ccd_settled,
@@ -462,12 +465,10 @@ fn resting_of(near: &NearList, within_reach: bool) -> Vec<Pair> {
 /// applied, and the list with the dormant pairs it had to evaluate and, per [`Near`], whether it
 /// received an impulse.
 ///
-/// A pair's relative normal velocity depends only on its nodes' velocities, and a dormant pair
-/// is evaluated once a node of it has moved. So a sweep visits, in candidate order, only the
-/// pairs that can need it: every active pair in the first sweep, then a pair (active, or
-/// dormant) once an impulse changed a node of it since it was last visited (this sweep if
-/// its slot comes later, else the next one; per node, its pairs). The same impulses in the same
-/// order as visiting every pair in every sweep (test
+/// A pair's relative normal velocity depends only on its nodes' velocities, so a pair that got
+/// no impulse is tested again only once one of them has changed since (per node, the count of
+/// impulses when it last changed; per pair, the count when it was last tested): the same
+/// impulses in the same order as testing every pair in every sweep (test
 /// `lazy_screening_repels_exactly_like_eager_screening`).
 fn sweeps(
     scene: &Scene,
@@ -477,146 +478,93 @@ fn sweeps(
     policy: &dyn ContactPolicy,
 ) -> (usize, NearList) {
     debug_assert!(v == v_start);
-    // Slot `s` of part `p` is number `offsets[p] + s` in candidate order.
-    let mut offsets = Vec::with_capacity(near.parts.len() + 1);
-    let mut total = 0usize;
-    for part in &near.parts {
-        offsets.push(total);
-        total += part.slots.len();
-    }
-    offsets.push(total);
-    // The nodes of a slot that can need a visit (active or dormant).
-    let watched = |part: &Part, index: u32| -> Option<[u32; 4]> {
-        if index == FAR {
-            None
-        } else if index & DORMANT != 0 {
-            Some(part.dormant[(index & !DORMANT) as usize])
-        } else {
-            let n = &part.nears[index as usize];
-            n.active.then_some(n.nodes)
-        }
+    // Per node, the number of impulses applied when its velocity last changed (0: never).
+    let mut changed_at = vec![0u32; v.len()];
+    // Whether a cloth node of `nodes` changed at impulse `since` or later.
+    let changed_since = |changed_at: &[u32], nodes: &[u32; 4], since: u32| {
+        nodes
+            .iter()
+            .any(|&k| k & super::OBSTACLE == 0 && changed_at[k as usize] >= since)
     };
-    // Per cloth node, its watched slots (`slots_of[first[k]..first[k + 1]]`); the first sweep
-    // visits the active pairs.
-    let words = total.div_ceil(64);
-    let (mut now, mut next) = (vec![0u64; words], vec![0u64; words]);
-    let mut first = vec![0u32; v.len() + 1];
-    for part in &near.parts {
-        for &(_, index) in &part.slots {
-            for k in watched(part, index).into_iter().flatten() {
-                if k & super::OBSTACLE == 0 {
-                    first[k as usize + 1] += 1;
-                }
-            }
-        }
-    }
-    for k in 0..v.len() {
-        first[k + 1] += first[k];
-    }
-    let mut fill = first.clone();
-    let mut slots_of = vec![0u32; first[v.len()] as usize];
-    for (p, part) in near.parts.iter().enumerate() {
-        for (s, &(_, index)) in part.slots.iter().enumerate() {
-            let g = offsets[p] + s;
-            if let Some(nodes) = watched(part, index) {
-                if index & DORMANT == 0 {
-                    now[g / 64] |= 1 << (g % 64);
-                }
-                for k in nodes {
-                    if k & super::OBSTACLE == 0 {
-                        slots_of[fill[k as usize] as usize] = g as u32;
-                        fill[k as usize] += 1;
-                    }
-                }
-            }
-        }
-    }
     let mut applied = 0;
     for _ in 0..SWEEPS {
         let mut any = false;
-        let (mut p, mut w) = (0, 0);
-        while w < words {
-            if now[w] == 0 {
-                w += 1;
-                continue;
-            }
-            let g = w * 64 + now[w].trailing_zeros() as usize;
-            now[w] &= now[w] - 1;
-            while offsets[p + 1] <= g {
-                p += 1;
-            }
-            let part = &mut near.parts[p];
-            let s = g - offsets[p];
-            let (pair, mut index) = part.slots[s];
-            if index == FAR {
-                continue;
-            }
-            if index & DORMANT != 0 {
-                // A node moved: the pair's verdict as eager screening would have given it.
-                let nodes = part.dormant[(index & !DORMANT) as usize];
-                let eps = scene
-                    .thickness(pair, policy)
-                    .expect("dormant pairs have a thickness");
-                let (x, vel, stats) = pair_inputs(scene, v_start, &nodes);
-                index = match screen_pair(scene, pair, eps, &nodes, &x, &vel, &stats, false, 0.0).0
-                {
-                    Verdict::Near(n) => {
-                        part.nears.push(n);
-                        (part.nears.len() - 1) as u32
-                    }
-                    _ => FAR,
-                };
-                part.slots[s].1 = index;
+        for part in &mut near.parts {
+            for s in 0..part.slots.len() {
+                let (pair, mut index) = part.slots[s];
                 if index == FAR {
                     continue;
                 }
-            }
-            let n = &mut part.nears[index as usize];
-            if !n.active {
-                continue;
-            }
-            let g_ = &n.geom;
-            let vn: f64 = (0..4)
-                .map(|k| g_.weights[k] * g_.normal.dot(&scene.velocity(v, n.nodes[k])))
-                .sum();
-            if vn >= n.target - 1e-12 * n.target.abs() {
-                continue;
-            }
-            if let Some(dv) = impulse(
-                scene,
-                v,
-                &n.nodes,
-                &g_.weights,
-                &g_.normal,
-                n.target - vn,
-                n.mu,
-            ) {
-                for k in 0..4 {
-                    let node = n.nodes[k];
-                    if node & super::OBSTACLE == 0 {
-                        v[node as usize] += dv[k];
-                        // Its pairs: visited later in this sweep, or in the next one.
-                        let range =
-                            first[node as usize] as usize..first[node as usize + 1] as usize;
-                        for &j in &slots_of[range] {
-                            let j = j as usize;
-                            let bits = if j > g { &mut now } else { &mut next };
-                            bits[j / 64] |= 1 << (j % 64);
-                        }
+                if index & DORMANT != 0 {
+                    if applied == 0 {
+                        // No velocity has changed yet.
+                        continue;
+                    }
+                    let nodes = part.dormant[(index & !DORMANT) as usize];
+                    if !changed_since(&changed_at, &nodes, 1) {
+                        continue;
+                    }
+                    // A node moved: the pair's verdict as eager screening would have given it.
+                    let eps = scene
+                        .thickness(pair, policy)
+                        .expect("dormant pairs have a thickness");
+                    let (x, vel, stats) = pair_inputs(scene, v_start, &nodes);
+                    index =
+                        match screen_pair(scene, pair, eps, &nodes, &x, &vel, &stats, false, 0.0).0
+                        {
+                            Verdict::Near(n) => {
+                                part.nears.push(n);
+                                (part.nears.len() - 1) as u32
+                            }
+                            _ => FAR,
+                        };
+                    part.slots[s].1 = index;
+                    if index == FAR {
+                        continue;
                     }
                 }
-                applied += 1;
-                any = true;
-                n.impulsed = true;
+                let n = &mut part.nears[index as usize];
+                if !n.active {
+                    continue;
+                }
+                // Tested before, and none of its nodes changed since: still no impulse.
+                if n.tested_at != 0 && !changed_since(&changed_at, &n.nodes, n.tested_at) {
+                    continue;
+                }
+                n.tested_at = applied + 1;
+                let g = &n.geom;
+                let vn: f64 = (0..4)
+                    .map(|k| g.weights[k] * g.normal.dot(&scene.velocity(v, n.nodes[k])))
+                    .sum();
+                if vn >= n.target - 1e-12 * n.target.abs() {
+                    continue;
+                }
+                if let Some(dv) = impulse(
+                    scene,
+                    v,
+                    &n.nodes,
+                    &g.weights,
+                    &g.normal,
+                    n.target - vn,
+                    n.mu,
+                ) {
+                    applied += 1;
+                    for k in 0..4 {
+                        if n.nodes[k] & super::OBSTACLE == 0 {
+                            v[n.nodes[k] as usize] += dv[k];
+                            changed_at[n.nodes[k] as usize] = applied;
+                        }
+                    }
+                    any = true;
+                    n.impulsed = true;
+                }
             }
         }
         if !any {
             break;
         }
-        // `now` is all clear: the next sweep's slots become this one's.
-        std::mem::swap(&mut now, &mut next);
     }
-    (applied, near)
+    (applied as usize, near)
 }
 
 #[cfg(test)]
@@ -943,8 +891,8 @@ mod tests {
         );
     }
 
-    /// The sweeps' visiting (a pair only once a node of it changed since its last visit, this
-    /// sweep or the next) against [`plain_sweeps`] (every active pair in every sweep), on
+    /// The sweeps' skipping (a pair that got no impulse is tested again only once a node of it
+    /// changed) against [`plain_sweeps`] (every active pair in every sweep), on
     /// random pair lists over few nodes (pairs share nodes with many others, so impulses chain
     /// within and across sweeps, and often still change velocities in the last sweep):
     /// the same impulses, velocities (bit for bit) and resting contacts. Some nodes are pinned
@@ -1017,6 +965,7 @@ mod tests {
                     active: rng.random_bool(0.9),
                     close: rng.random_bool(0.3),
                     impulsed: false,
+                    tested_at: 0,
                 });
             }
             for within_reach in [false, true] {
@@ -1154,6 +1103,7 @@ mod tests {
             active,
             close,
             impulsed: false,
+            tested_at: 0,
         })
     }
 }
