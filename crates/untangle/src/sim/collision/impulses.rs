@@ -44,26 +44,40 @@ pub fn ccd(scene: &Scene, v: &[Vec3], p: Pair, eps: f64) -> Option<f64> {
     let x0 = scene.positions(v, &nodes, 0.0);
     let x1 = scene.positions(v, &nodes, 1.0);
     let vt = p.is_vertex_triangle();
-    let d0 = closest(&x0, vt).distance;
+    let d0 = distance(&x0, vt);
     ccd_with_start_distance(&x0, &x1, vt, eps, d0, relative_reach(&x0, &x1, vt))
 }
 
 /// The largest displacement of a node of one primitive relative to a node of the other over
 /// the step: a Lipschitz bound of how much the pair's distance can shrink.
+///
+/// One square root of the largest squared displacement: the same bits as the `f64::max` fold
+/// (from 0) of the displacements' norms, since a correctly rounded square root is monotone and
+/// a NaN is skipped either way (test `relative_reach_equals_the_fold_of_norms`).
 #[inline]
 fn relative_reach(x0: &[Vec3; 4], x1: &[Vec3; 4], vt: bool) -> f64 {
     let d: [Vec3; 4] = [0, 1, 2, 3].map(|k| x1[k] - x0[k]);
-    if vt {
-        (1..4).map(|k| (d[0] - d[k]).norm()).fold(0.0, f64::max)
+    let q = |i: usize, j: usize| (d[i] - d[j]).norm_squared();
+    // `m` is never NaN: `f64::max(m, c)` is `c` if `c > m`, else `m`.
+    let max = |m: f64, c: f64| if c > m { c } else { m };
+    let m = if vt {
+        max(max(max(0.0, q(0, 1)), q(0, 2)), q(0, 3))
     } else {
-        let mut m = 0.0f64;
-        for i in 0..2 {
-            for j in 2..4 {
-                m = m.max((d[i] - d[j]).norm());
-            }
-        }
-        m
-    }
+        max(max(max(max(0.0, q(0, 2)), q(0, 3)), q(1, 2)), q(1, 3))
+    };
+    m.sqrt()
+}
+
+/// The distance of a pair's primitives at positions `x`: [`closest`]'s distance, bit for bit,
+/// without its weights and normal (what conservative advancement and the start distance need).
+#[inline]
+fn distance(x: &[Vec3; 4], vt: bool) -> f64 {
+    let d2 = if vt {
+        crate::geom::distance::point_triangle(&x[0], &x[1], &x[2], &x[3]).0
+    } else {
+        crate::geom::distance::segment_segment(&x[0], &x[1], &x[2], &x[3]).0
+    };
+    d2.max(0.0).sqrt()
 }
 
 /// Conservative advancement from the start distance `d0` with the Lipschitz bound `reach`
@@ -95,7 +109,7 @@ fn ccd_with_start_distance(
             return None;
         }
         let xt: [Vec3; 4] = [0, 1, 2, 3].map(|k| x0[k] + (x1[k] - x0[k]) * t);
-        d = closest(&xt, vt).distance;
+        d = distance(&xt, vt);
     }
     let xs: [Vec3; 4] = if t > 0.0 {
         [0, 1, 2, 3].map(|k| x0[k] + (x1[k] - x0[k]) * t)
@@ -160,7 +174,7 @@ pub fn detect_screened(
     if super::swept_apart(x0, &x1, vt, eps_c) {
         return None;
     }
-    let d0 = start.distance.unwrap_or_else(|| closest(x0, vt).distance);
+    let d0 = start.distance.unwrap_or_else(|| distance(x0, vt));
     let eps = eps_c.min(0.5 * d0);
     let toi = ccd_with_start_distance(x0, &x1, vt, eps, d0, reach)?;
     Some(Collision {
@@ -229,4 +243,83 @@ pub fn resolve(scene: &Scene, v: &mut [Vec3], collisions: &[Collision]) -> usize
         }
     }
     applied
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn v3(a: [f64; 3]) -> Vec3 {
+        Vec3::new(a[0], a[1], a[2])
+    }
+
+    /// A coordinate: ordinary values, and now and then a signed zero, a huge or tiny value, an
+    /// infinity or a NaN.
+    fn coordinate() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            8 => -3.0f64..3.0,
+            1 => prop::sample::select(vec![
+                0.0,
+                -0.0,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NAN,
+                1e300,
+                -1e-300,
+            ]),
+        ]
+    }
+
+    /// Plain oracle of [`relative_reach`]: the `f64::max` fold (from 0) of the norms of the
+    /// relative displacements of the node pairs across the two primitives.
+    fn plain_relative_reach(x0: &[Vec3; 4], x1: &[Vec3; 4], vt: bool) -> f64 {
+        let d: [Vec3; 4] = [0, 1, 2, 3].map(|k| x1[k] - x0[k]);
+        let split = if vt { 1 } else { 2 };
+        let mut m = 0.0f64;
+        for i in 0..split {
+            for j in split..4 {
+                m = m.max((d[i] - d[j]).norm());
+            }
+        }
+        m
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        /// [`relative_reach`] (one square root of the largest squared displacement) gives the
+        /// bits of the fold of norms, also with signed zeros, infinities and NaNs.
+        #[test]
+        fn relative_reach_equals_the_fold_of_norms(
+            a in prop::array::uniform4(prop::array::uniform3(coordinate())),
+            b in prop::array::uniform4(prop::array::uniform3(coordinate())),
+            vt in any::<bool>(),
+        ) {
+            let (x0, x1) = (a.map(v3), b.map(v3));
+            let got = relative_reach(&x0, &x1, vt);
+            let want = plain_relative_reach(&x0, &x1, vt);
+            prop_assert!(got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                "{got} vs {want}");
+        }
+
+        /// [`distance`] is [`closest`]'s distance, bit for bit (random pairs, and pairs on
+        /// a 2 mm lattice where coincident, parallel and touching primitives are common).
+        #[test]
+        fn distance_equals_the_closest_points_distance(
+            a in prop::array::uniform4(prop::array::uniform3(coordinate())),
+            lattice in prop::array::uniform4(prop::array::uniform3(-2i32..3)),
+            on_lattice in any::<bool>(),
+            vt in any::<bool>(),
+        ) {
+            let x = if on_lattice {
+                lattice.map(|p| Vec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * 2e-3)
+            } else {
+                a.map(v3)
+            };
+            let got = distance(&x, vt);
+            let want = closest(&x, vt).distance;
+            prop_assert!(got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
+                "{got} vs {want}");
+        }
+    }
 }
