@@ -1102,7 +1102,10 @@ mod tests {
             prop_assert!((r - want).norm() < 1e-8, "{} vs {}", r, want);
             let rtr = r.transpose() * r;
             prop_assert!((rtr - nalgebra::Matrix2::identity()).norm() < 1e-10);
-            prop_assert!((project_orthonormal(&r) - r).norm() < 1e-12);
+            // Re-projecting an `r` whose columns are orthonormal to `delta` moves it by about
+            // `delta / 2`: the same bound as the line above (the closed form's error grows with
+            // the condition number squared, up to 1e6 here; a saved case had 1.7e-11).
+            prop_assert!((project_orthonormal(&r) - r).norm() < 1e-10);
             let best = (f - r).norm_squared();
             for a in angles.chunks(3) {
                 let rot = nalgebra::Rotation3::from_euler_angles(a[0], a[1], a[2]);
