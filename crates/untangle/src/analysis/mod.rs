@@ -76,6 +76,19 @@ impl Analysis {
         v.dedup();
         v
     }
+
+    /// Sorted, distinct loop vertices of all paths (Wicke et al. 2006, Sec. 4.1: where a path
+    /// meets itself or its corresponding path).
+    pub fn loop_vertices(&self) -> Vec<u32> {
+        let mut v: Vec<u32> = self
+            .paths
+            .iter()
+            .flat_map(|p| p.loop_vertices().iter().copied())
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
 }
 
 /// Choices beyond the papers' defaults.

@@ -45,13 +45,7 @@ pub fn is_regionless(analysis: &Analysis, i: usize) -> bool {
 /// any path: a loop vertex lies on both sides of its curve). `None` when no tanglement has a regionless path.
 pub fn regionless_red(mesh: &AnalysisMesh, analysis: &Analysis) -> Option<Vec<bool>> {
     let mut red = analysis.coloring.red_vertex.clone();
-    let mut loops: Vec<u32> = analysis
-        .paths
-        .iter()
-        .flat_map(|p| p.loop_vertices().iter().copied())
-        .collect();
-    loops.sort_unstable();
-    loops.dedup();
+    let loops = analysis.loop_vertices();
     let mut any = false;
     for t in &analysis.tanglements {
         if !t.paths.iter().any(|&i| is_regionless(analysis, i as usize)) {

@@ -71,13 +71,7 @@ pub fn doubled_edges(mesh: &AnalysisMesh, analysis: &Analysis, i: usize) -> Vec<
 /// pair of triangles piercing that edge, their shared corners that are neither loop vertices
 /// (of any path) nor ends of the edge.
 pub fn ridge_vertices(mesh: &AnalysisMesh, analysis: &Analysis) -> Vec<u32> {
-    let mut loops: Vec<u32> = analysis
-        .paths
-        .iter()
-        .flat_map(|p| p.loop_vertices().iter().copied())
-        .collect();
-    loops.sort_unstable();
-    loops.dedup();
+    let loops = analysis.loop_vertices();
     let mut out = Vec::new();
     for i in 0..analysis.paths.len() {
         if !regionless(analysis, i) {

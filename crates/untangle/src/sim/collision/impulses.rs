@@ -248,27 +248,11 @@ pub fn resolve(scene: &Scene, v: &mut [Vec3], collisions: &[Collision]) -> usize
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::collision::coordinate_for_tests as coordinate;
     use proptest::prelude::*;
 
     fn v3(a: [f64; 3]) -> Vec3 {
         Vec3::new(a[0], a[1], a[2])
-    }
-
-    /// A coordinate: ordinary values, and now and then a signed zero, a huge or tiny value, an
-    /// infinity or a NaN.
-    fn coordinate() -> impl Strategy<Value = f64> {
-        prop_oneof![
-            8 => -3.0f64..3.0,
-            1 => prop::sample::select(vec![
-                0.0,
-                -0.0,
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-                f64::NAN,
-                1e300,
-                -1e-300,
-            ]),
-        ]
     }
 
     /// Plain oracle of [`relative_reach`]: the `f64::max` fold (from 0) of the norms of the

@@ -224,6 +224,25 @@ pub fn thickness_of(c: Contact) -> Option<f64> {
     }
 }
 
+/// A coordinate for the collision code's bit-identity proptests: ordinary values, and now and
+/// then a signed zero, a huge or tiny value, an infinity or a NaN.
+#[cfg(test)]
+pub(crate) fn coordinate_for_tests() -> impl proptest::strategy::Strategy<Value = f64> {
+    use proptest::prelude::*;
+    prop_oneof![
+        8 => -3.0f64..3.0,
+        1 => prop::sample::select(vec![
+            0.0,
+            -0.0,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            1e300,
+            -1e-300,
+        ]),
+    ]
+}
+
 /// A cloth-only scene with `h = 0.02`, friction 0.1 and `ccd_ratio = 0.5` (unit tests).
 #[cfg(test)]
 pub(crate) fn obstacle_free_scene_for_tests<'a>(

@@ -572,6 +572,7 @@ mod tests {
     use super::*;
     use crate::geom::Vec2;
     use crate::mesh::Topology;
+    use crate::sim::collision::coordinate_for_tests as coordinate;
     use crate::sim::collision::obstacle_free_scene_for_tests as scene_of;
     use crate::sim::policy::UniformThickness;
     use proptest::prelude::*;
@@ -580,23 +581,6 @@ mod tests {
 
     fn v3(a: [f64; 3]) -> Vec3 {
         Vec3::new(a[0], a[1], a[2])
-    }
-
-    /// A coordinate for the bit-identity proptests: ordinary values, and now and then a
-    /// signed zero, an infinity or a NaN.
-    fn coordinate() -> impl Strategy<Value = f64> {
-        prop_oneof![
-            8 => -3.0f64..3.0,
-            1 => prop::sample::select(vec![
-                0.0,
-                -0.0,
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-                f64::NAN,
-                1e300,
-                -1e-300,
-            ]),
-        ]
     }
 
     /// The node split of a pair: nodes `..split` are one primitive (the vertex when `vt`, else
