@@ -427,216 +427,196 @@ pub fn untangle_with_fields(
     progress: &(dyn Fn(Stage) + Sync),
 ) -> Result<Untangled> {
     crate::pool::in_pool(|| {
-        untangle_in_pool(
-            body,
-            garments,
-            fields,
-            field_ms,
-            body_field_ms,
-            params,
-            progress,
-        )
-    })
-}
-
-/// [`untangle_with_fields`]'s body.
-fn untangle_in_pool(
-    body: Option<(&Mesh, &GarmentField)>,
-    garments: &[GarmentInput],
-    fields: &[GarmentField],
-    field_ms: &[f64],
-    body_field_ms: f64,
-    params: &Params,
-    progress: &(dyn Fn(Stage) + Sync),
-) -> Result<Untangled> {
-    if fields.len() != garments.len() {
-        return Err(Error::Parameter("one field per garment is needed".into()));
-    }
-    let mut layers: Vec<Layer> = Vec::new();
-    if let Some((_, b)) = body {
-        layers.push(Layer {
-            field: b,
-            weight: f64::INFINITY,
-            thickness: params.body_thickness,
-        });
-    }
-    let offset = layers.len();
-    for (g, f) in garments.iter().zip(fields) {
-        layers.push(Layer {
-            field: f,
-            weight: g.weight,
-            thickness: g.thickness,
-        });
-    }
-    let composer = Composer::new(&layers)?.with_scaled_offsets(params.projection.scaled_offsets);
-    let min_cell = fields
-        .iter()
-        .map(|f| f.f.cell)
-        .fold(f64::INFINITY, f64::min);
-    let mut pp = params.projection.clone();
-    let min_t = garments
-        .iter()
-        .map(|g| g.thickness)
-        .filter(|&t| t > 0.0)
-        .fold(f64::INFINITY, f64::min);
-    if pp.tolerance <= 0.0 {
-        pp.tolerance = 1e-3 * if min_t.is_finite() { min_t } else { min_cell };
-    }
-    if pp.max_step <= 0.0 {
-        pp.max_step = 2.0 * min_cell;
-    }
-    let mut out = Untangled {
-        positions: Vec::new(),
-        projections: Vec::new(),
-        reports: Vec::new(),
-        body_field_ms,
-        tolerance: pp.tolerance,
-        repair: Vec::new(),
-        pair_repair: PairRepair::default(),
-        projection_ms: 0.0,
-        repair_ms: 0.0,
-    };
-    let t_all = Instant::now();
-    // The garments' topologies, side by side (each is sequential).
-    let topos: Vec<Topology> = garments
-        .par_iter()
-        .map(|g| Topology::new(g.mesh))
-        .collect::<Result<_>>()?;
-    // Every garment is projected onto its own corrected iso-surface, which depends on the
-    // fields only (Sec. 6.3), not on the other garments' meshes: the projections run side by
-    // side (each is parallel over its vertices, with Jacobi updates, so the result does not
-    // depend on the thread count or on the interleaving). On two cores this keeps both busy
-    // through the sequential parts of each projection's passes.
-    let projected: Vec<(LayerProjection, f64)> = garments
-        .par_iter()
-        .enumerate()
-        .map(|(k, g)| {
-            let t = Instant::now();
-            let pr = project_layer(
-                &composer,
-                offset + k,
-                &g.mesh.positions,
-                &g.mesh.triangles,
-                &topos[k],
-                &pp,
-                &|iteration| {
-                    progress(Stage::Projection {
-                        layer: k,
-                        iteration,
-                    })
-                },
-            );
-            (pr, t.elapsed().as_secs_f64() * 1e3)
-        })
-        .collect();
-    for (k, (g, (pr, ms))) in garments.iter().zip(projected).enumerate() {
-        let max_displacement = pr
-            .positions
-            .iter()
-            .zip(&g.mesh.positions)
-            .map(|(a, b)| (a - b).norm())
-            .fold(0.0, f64::max);
-        let f = &fields[k];
-        out.reports.push(LayerReport {
-            name: g.mesh.name.clone(),
-            vertices: g.mesh.positions.len(),
-            moved: pr.moved.iter().filter(|&&m| m).count(),
-            max_displacement,
-            in_contact: pr
-                .run
-                .iter()
-                .filter(|r| **r != (offset + k, offset + k))
-                .count(),
-            iterations: pr.iterations,
-            max_residual: pr.residual.iter().copied().fold(0.0, f64::max),
-            unconverged: pr.unconverged,
-            samples: f.num_samples,
-            boundary_samples: f.num_boundary_samples,
-            grid_nodes: f.f.num_nodes() + f.h.as_ref().map_or(0, |h| h.num_nodes()),
-            grid_exact_fraction: f.exact_fraction,
-            field_ms: field_ms.get(k).copied().unwrap_or(0.0),
-            field_steps_ms: f.timing_ms,
-            projection_ms: ms,
-        });
-        out.projections.push(pr);
-    }
-    out.projection_ms = t_all.elapsed().as_secs_f64() * 1e3;
-    if params.repair.steps > 0 || params.repair.pair_rounds > 0 {
-        let t = Instant::now();
-        // Per garment vertex: merged with the layer below / above (the runs, as measured by
-        // `measure_separation`).
-        let contacts: Vec<Vec<u8>> = out
-            .projections
-            .iter()
-            .enumerate()
-            .map(|(k, pr)| {
-                let me = offset + k;
-                pr.run
-                    .iter()
-                    .zip(&pr.active)
-                    .map(|(run, &act)| {
-                        let below = me > 0 && run.0 < me && act & (1 << (me - 1)) != 0;
-                        let above = run.1 > me && act & (1 << (me + 1)) != 0;
-                        (below as u8 * super::repair::CONTACT_BELOW)
-                            | (above as u8 * super::repair::CONTACT_ABOVE)
-                    })
-                    .collect()
-            })
-            .collect();
-        let rl: Vec<RepairLayer> = garments
-            .iter()
-            .enumerate()
-            .map(|(k, g)| RepairLayer {
-                mesh: g.mesh,
-                topo: &topos[k],
-                field: &fields[k],
+        if fields.len() != garments.len() {
+            return Err(Error::Parameter("one field per garment is needed".into()));
+        }
+        let mut layers: Vec<Layer> = Vec::new();
+        if let Some((_, b)) = body {
+            layers.push(Layer {
+                field: b,
+                weight: f64::INFINITY,
+                thickness: params.body_thickness,
+            });
+        }
+        let offset = layers.len();
+        for (g, f) in garments.iter().zip(fields) {
+            layers.push(Layer {
+                field: f,
                 weight: g.weight,
-                separation: 0.5 * g.thickness
-                    + if k > 0 {
-                        0.5 * garments[k - 1].thickness
-                    } else {
-                        0.5 * params.body_thickness
+                thickness: g.thickness,
+            });
+        }
+        let composer =
+            Composer::new(&layers)?.with_scaled_offsets(params.projection.scaled_offsets);
+        let min_cell = fields
+            .iter()
+            .map(|f| f.f.cell)
+            .fold(f64::INFINITY, f64::min);
+        let mut pp = params.projection.clone();
+        let min_t = garments
+            .iter()
+            .map(|g| g.thickness)
+            .filter(|&t| t > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        if pp.tolerance <= 0.0 {
+            pp.tolerance = 1e-3 * if min_t.is_finite() { min_t } else { min_cell };
+        }
+        if pp.max_step <= 0.0 {
+            pp.max_step = 2.0 * min_cell;
+        }
+        let mut out = Untangled {
+            positions: Vec::new(),
+            projections: Vec::new(),
+            reports: Vec::new(),
+            body_field_ms,
+            tolerance: pp.tolerance,
+            repair: Vec::new(),
+            pair_repair: PairRepair::default(),
+            projection_ms: 0.0,
+            repair_ms: 0.0,
+        };
+        let t_all = Instant::now();
+        // The garments' topologies, side by side (each is sequential).
+        let topos: Vec<Topology> = garments
+            .par_iter()
+            .map(|g| Topology::new(g.mesh))
+            .collect::<Result<_>>()?;
+        // Every garment is projected onto its own corrected iso-surface, which depends on the
+        // fields only (Sec. 6.3), not on the other garments' meshes: the projections run side by
+        // side (each is parallel over its vertices, with Jacobi updates, so the result does not
+        // depend on the thread count or on the interleaving). On two cores this keeps both busy
+        // through the sequential parts of each projection's passes.
+        let projected: Vec<(LayerProjection, f64)> = garments
+            .par_iter()
+            .enumerate()
+            .map(|(k, g)| {
+                let t = Instant::now();
+                let pr = project_layer(
+                    &composer,
+                    offset + k,
+                    &g.mesh.positions,
+                    &g.mesh.triangles,
+                    &topos[k],
+                    &pp,
+                    &|iteration| {
+                        progress(Stage::Projection {
+                            layer: k,
+                            iteration,
+                        })
                     },
-                contacts: &contacts[k],
+                );
+                (pr, t.elapsed().as_secs_f64() * 1e3)
             })
             .collect();
-        let mut positions: Vec<Vec<Vec3>> = out
+        for (k, (g, (pr, ms))) in garments.iter().zip(projected).enumerate() {
+            let max_displacement = pr
+                .positions
+                .iter()
+                .zip(&g.mesh.positions)
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max);
+            let f = &fields[k];
+            out.reports.push(LayerReport {
+                name: g.mesh.name.clone(),
+                vertices: g.mesh.positions.len(),
+                moved: pr.moved.iter().filter(|&&m| m).count(),
+                max_displacement,
+                in_contact: pr
+                    .run
+                    .iter()
+                    .filter(|r| **r != (offset + k, offset + k))
+                    .count(),
+                iterations: pr.iterations,
+                max_residual: pr.residual.iter().copied().fold(0.0, f64::max),
+                unconverged: pr.unconverged,
+                samples: f.num_samples,
+                boundary_samples: f.num_boundary_samples,
+                grid_nodes: f.f.num_nodes() + f.h.as_ref().map_or(0, |h| h.num_nodes()),
+                grid_exact_fraction: f.exact_fraction,
+                field_ms: field_ms.get(k).copied().unwrap_or(0.0),
+                field_steps_ms: f.timing_ms,
+                projection_ms: ms,
+            });
+            out.projections.push(pr);
+        }
+        out.projection_ms = t_all.elapsed().as_secs_f64() * 1e3;
+        if params.repair.steps > 0 || params.repair.pair_rounds > 0 {
+            let t = Instant::now();
+            // Per garment vertex: merged with the layer below / above (the runs, as measured by
+            // `measure_separation`).
+            let contacts: Vec<Vec<u8>> = out
+                .projections
+                .iter()
+                .enumerate()
+                .map(|(k, pr)| {
+                    let me = offset + k;
+                    pr.run
+                        .iter()
+                        .zip(&pr.active)
+                        .map(|(run, &act)| {
+                            let below = me > 0 && run.0 < me && act & (1 << (me - 1)) != 0;
+                            let above = run.1 > me && act & (1 << (me + 1)) != 0;
+                            (below as u8 * super::repair::CONTACT_BELOW)
+                                | (above as u8 * super::repair::CONTACT_ABOVE)
+                        })
+                        .collect()
+                })
+                .collect();
+            let rl: Vec<RepairLayer> = garments
+                .iter()
+                .enumerate()
+                .map(|(k, g)| RepairLayer {
+                    mesh: g.mesh,
+                    topo: &topos[k],
+                    field: &fields[k],
+                    weight: g.weight,
+                    separation: 0.5 * g.thickness
+                        + if k > 0 {
+                            0.5 * garments[k - 1].thickness
+                        } else {
+                            0.5 * params.body_thickness
+                        },
+                    contacts: &contacts[k],
+                })
+                .collect();
+            let mut positions: Vec<Vec<Vec3>> = out
+                .projections
+                .iter()
+                .map(|p| p.positions.clone())
+                .collect();
+            (out.repair, out.pair_repair) = repair(
+                body.map(|(m, f)| (m, f as &dyn super::field::LayerField)),
+                &rl,
+                &mut positions,
+                &params.repair,
+            );
+            out.repair_ms = t.elapsed().as_secs_f64() * 1e3;
+            for (k, p) in positions.into_iter().enumerate() {
+                let pr = &mut out.projections[k];
+                for (v, (a, b)) in p.iter().zip(&pr.positions).enumerate() {
+                    if a != b {
+                        pr.moved[v] = true;
+                        pr.repaired[v] = true;
+                    }
+                }
+                pr.positions = p;
+                let r = &mut out.reports[k];
+                r.moved = pr.moved.iter().filter(|&&m| m).count();
+                r.max_displacement = pr
+                    .positions
+                    .iter()
+                    .zip(&garments[k].mesh.positions)
+                    .map(|(a, b)| (a - b).norm())
+                    .fold(0.0, f64::max);
+            }
+        }
+        out.positions = out
             .projections
             .iter()
             .map(|p| p.positions.clone())
             .collect();
-        (out.repair, out.pair_repair) = repair(
-            body.map(|(m, f)| (m, f as &dyn super::field::LayerField)),
-            &rl,
-            &mut positions,
-            &params.repair,
-        );
-        out.repair_ms = t.elapsed().as_secs_f64() * 1e3;
-        for (k, p) in positions.into_iter().enumerate() {
-            let pr = &mut out.projections[k];
-            for (v, (a, b)) in p.iter().zip(&pr.positions).enumerate() {
-                if a != b {
-                    pr.moved[v] = true;
-                    pr.repaired[v] = true;
-                }
-            }
-            pr.positions = p;
-            let r = &mut out.reports[k];
-            r.moved = pr.moved.iter().filter(|&&m| m).count();
-            r.max_displacement = pr
-                .positions
-                .iter()
-                .zip(&garments[k].mesh.positions)
-                .map(|(a, b)| (a - b).norm())
-                .fold(0.0, f64::max);
-        }
-    }
-    out.positions = out
-        .projections
-        .iter()
-        .map(|p| p.positions.clone())
-        .collect();
-    Ok(out)
+        Ok(out)
+    })
 }
 
 /// Intersections left between the garments and with the body, by the global intersection
