@@ -15,18 +15,8 @@
 //! vertices out-most red vertices, which Alg. 2 pulls toward their green neighbours across the
 //! slit (VT-type finesse, Sec. 7): the fold withdraws through the surface.
 
-use crate::analysis::{coloring, Analysis, AnalysisMesh, End, Region};
-
-/// Whether path `i` of `analysis` is a slit candidate: a partitioning path (CLOSED, LL, BB)
-/// without a non-empty inside region.
-fn regionless(analysis: &Analysis, i: usize) -> bool {
-    analysis.paths[i].kind.is_partitioning()
-        && match &analysis.regions[i] {
-            Region::Inside(vs) => vs.is_empty(),
-            Region::None => true,
-            Region::NotSeparating => false,
-        }
-}
+use super::regionless::is_regionless;
+use crate::analysis::{coloring, Analysis, AnalysisMesh, End};
 
 /// The edges path `i` passes across at least twice, each with the triangles that pierce it
 /// there (distinct crossings, ascending by edge). An edge `e` of a piece's own triangle is passed
@@ -74,7 +64,8 @@ pub fn ridge_vertices(mesh: &AnalysisMesh, analysis: &Analysis) -> Vec<u32> {
     let loops = analysis.loop_vertices();
     let mut out = Vec::new();
     for i in 0..analysis.paths.len() {
-        if !regionless(analysis, i) {
+        // A slit candidate: a partitioning path without a non-empty inside region.
+        if !is_regionless(analysis, i) {
             continue;
         }
         for (e, ts) in doubled_edges(mesh, analysis, i) {
@@ -214,7 +205,7 @@ mod tests {
         let bb = (0..a.paths.len())
             .find(|&i| a.paths[i].kind == PathKind::BoundaryBoundary)
             .expect("a BB path");
-        assert!(regionless(&a, bb));
+        assert!(is_regionless(&a, bb));
         assert!(a.paths[bb].cut_edges().is_empty());
         assert_eq!(a.coloring.num_red_vertices(), 0);
         // The sheet's boundary edge 0-1 is passed twice, pierced by both roof faces.
