@@ -934,6 +934,41 @@ impl Projective {
             };
         }
         if let Some(lr) = problem.low_rank {
+            if SINGLE_PRECISION_INCREMENTS {
+                // As the exact step: the residual `rhs - A x` (the penalties' part of `A x`
+                // first, a few nodes) per free row in double precision, written into the
+                // solver's buffer, one single-precision solve, then the low-rank correction.
+                // The correction's columns `B^-1 w` are double precision; the increment's
+                // rounding stays relative to the increment, as for the exact step, so the
+                // fixed point is unchanged.
+                let (pen, b) = (&mut work.ax, &mut work.b);
+                pen.clear();
+                pen.resize(n, Vec3::zeros());
+                lr.add_penalties(x, pen);
+                b.clear();
+                b.resize(n, Vec3::zeros());
+                let (p, pen, xs) = (&self.pattern, &*pen, &*x);
+                factor.solve_increment_with(
+                    |i| {
+                        if problem.filter[i] == Filter::Fixed {
+                            return Vec3::zeros();
+                        }
+                        let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
+                        let ax = row_times(&p.cols[row.clone()], &problem.values[row], xs);
+                        rhs_const[i] + self.gather(targets, i) - ax - pen[i]
+                    },
+                    b,
+                );
+                lr.correct(x, problem.targets, b, force);
+                for (xi, d) in x.iter_mut().zip(b.iter()) {
+                    *xi += d;
+                }
+                return PcgResult {
+                    iterations: 1,
+                    relative_residual: 0.0,
+                    converged: true,
+                };
+            }
             // r = rhs - A x at the free nodes, dx = B^-1 r corrected for the contact terms.
             let (ax, b) = (&mut work.ax, &mut work.b);
             ax.clear();
@@ -1020,6 +1055,7 @@ pub fn scalar_blocks(pattern: &BsrPattern, values: &[f64]) -> BsrMatrix {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::low_rank;
     use proptest::prelude::*;
 
     fn mat(m: &[f64; 6]) -> Matrix3x2<f64> {
@@ -1629,6 +1665,62 @@ mod tests {
                                      hx[3 * i + 2] - b[3 * i + 2]);
                 prop_assert!((force[i] - want).norm() <= 1e-6 * fscale,
                              "force[{}] = {} vs {}", i, force[i], want);
+            }
+
+            // The same terms as a low-rank correction of the exact factor (the direct path):
+            // springs and friction tangents as penalties, the normal constraints as rank-one
+            // constraints. One step solves in single precision, so it lands near the oracle;
+            // a second step from there (same projections) corrects the rounding, since the
+            // residual is double precision: the fixed point is the oracle's.
+            let mut exact = ScalarCholesky::new(s.system.pattern()).unwrap();
+            prop_assert!(exact.factor(s.system.pattern(), &values, &s.fixed));
+            let mut groups = Vec::new();
+            let mut lr_terms = Vec::new();
+            for t in &terms.springs {
+                lr_terms.push(low_rank::Term { group: groups.len() as u32, dir: t.normal,
+                                               inv_k: 1.0 / t.k });
+                groups.push(low_rank::Group { nodes: t.nodes, weights: t.weights });
+            }
+            for i in 0..n {
+                if let Filter::Normal(nn) = filter[i] {
+                    let g = groups.len() as u32;
+                    groups.push(low_rank::Group { nodes: [i as u32; 4],
+                                                  weights: [1.0, 0.0, 0.0, 0.0] });
+                    lr_terms.push(low_rank::Term { group: g, dir: nn, inv_k: 0.0 });
+                    for &(v, _, k) in terms.friction.iter().filter(|f| f.0 as usize == i) {
+                        let t1 = nn.cross(&Vec3::new(0.3, -0.5, 0.8)).normalize();
+                        for dir in [t1, nn.cross(&t1)] {
+                            debug_assert_eq!(v as usize, i);
+                            lr_terms.push(low_rank::Term { group: g, dir, inv_k: 1.0 / k });
+                        }
+                    }
+                }
+            }
+            let lr = LowRank::new(&exact, &s.fixed, groups, lr_terms);
+            prop_assert!(lr.is_some());
+            let direct = StepProblem { contacts: None, low_rank: lr.as_ref(), ..problem };
+            let mut x: Vec<Vec3> = (0..n).map(|i| match filter[i] {
+                Filter::Free => s.y[i],
+                Filter::Fixed => targets[i],
+                Filter::Normal(nn) => s.y[i] + nn * nn.dot(&(targets[i] - s.y[i])),
+            }).collect();
+            let dist = |x: &[Vec3]| (0..n)
+                .flat_map(|i| (0..3).map(move |d| (i, d)))
+                .map(|(i, d)| (x[i][d] - sol[3 * i + d]).abs())
+                .fold(0.0, f64::max);
+            for (round, tol) in [(0, 1e-5), (1, 1e-8), (2, 1e-8)] {
+                s.system.global_step(&direct, &rhs, &exact, settings, &mut x, Some(&mut force),
+                                     &mut work);
+                prop_assert!(dist(&x) <= tol * scale_x, "round {}: {} (scale {})", round,
+                             dist(&x), scale_x);
+            }
+            // The direct path's forces are the obstacle constraints' (what the caller reads:
+            // release rule, friction bound), zero elsewhere.
+            for i in (0..n).filter(|&i| matches!(filter[i], Filter::Normal(_))) {
+                let want = Vec3::new(hx[3 * i] - b[3 * i], hx[3 * i + 1] - b[3 * i + 1],
+                                     hx[3 * i + 2] - b[3 * i + 2]);
+                prop_assert!((force[i] - want).norm() <= 1e-6 * fscale,
+                             "direct force[{}] = {} vs {}", i, force[i], want);
             }
         }
     }
