@@ -18,25 +18,25 @@ pub const CULL_MIN: u32 = 32;
 const PAR_CUTOFF: u32 = 256;
 
 #[derive(Clone, Copy, Debug)]
-struct Node {
-    aabb: Aabb,
+pub(super) struct Node {
+    pub(super) aabb: Aabb,
     /// `aabb.half_area()`, kept with the box (the traversals compare it at every node pair).
-    half_area: f64,
+    pub(super) half_area: f64,
     /// Leaf: first primitive slot; inner: index of the left child (right child = `right`).
-    start: u32,
+    pub(super) start: u32,
     /// Leaf: number of primitives (> 0); inner: 0.
-    count: u32,
+    pub(super) count: u32,
     /// Inner: index of the right child.
-    right: u32,
+    pub(super) right: u32,
     /// Number of primitives below.
-    size: u32,
+    pub(super) size: u32,
     /// First slot below (the subtree holds slots `first..first + size`).
     first: u32,
 }
 
 impl Node {
     #[inline]
-    fn is_leaf(&self) -> bool {
+    pub(super) fn is_leaf(&self) -> bool {
         self.count > 0
     }
 }
@@ -44,12 +44,18 @@ impl Node {
 /// A bounding volume hierarchy over a fixed set of primitives (indices `0..n`).
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {
-    nodes: Vec<Node>,
+    pub(super) nodes: Vec<Node>,
     /// Primitive index of each leaf slot.
-    order: Vec<u32>,
+    pub(super) order: Vec<u32>,
     /// Box of each leaf slot (copied for locality; updated by `refit`).
-    slot_aabbs: Vec<Aabb>,
+    pub(super) slot_aabbs: Vec<Aabb>,
+    /// Distinct for every build (0: never built); kept by refits and clones, which keep the
+    /// tree's shape (what a [`super::front::Front`] depends on).
+    pub(super) shape_id: u64,
 }
+
+/// Source of [`Bvh::shape_id`]s.
+static SHAPES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 impl Bvh {
     /// Builds the hierarchy over `aabbs` (primitive `i` has box `aabbs[i]`).
@@ -98,6 +104,7 @@ impl Bvh {
             nodes,
             order,
             slot_aabbs,
+            shape_id: SHAPES.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
 
@@ -427,7 +434,7 @@ impl Bvh {
 /// Subtree size from which traversals split into parallel tasks: [`PAR_CUTOFF`], or never with a
 /// single worker thread (the split only adds task and buffer overhead there). The output order is
 /// the same either way.
-fn par_cutoff() -> u32 {
+pub(super) fn par_cutoff() -> u32 {
     if rayon::current_num_threads() > 1 {
         PAR_CUTOFF
     } else {
@@ -500,7 +507,7 @@ fn refit_dirty(nodes: &mut [Node], offset: usize, slots: &[Aabb], dirty: &[u32])
 /// [`Aabb::overlaps`] without short-circuiting (the six comparisons are cheaper than the
 /// branches in the traversals' innermost loops; same result).
 #[inline(always)]
-fn overlap(a: &Aabb, b: &Aabb) -> bool {
+pub(super) fn overlap(a: &Aabb, b: &Aabb) -> bool {
     (a.min.x <= b.max.x)
         & (b.min.x <= a.max.x)
         & (a.min.y <= b.max.y)

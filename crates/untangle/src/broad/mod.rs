@@ -1,11 +1,14 @@
 //! Broad phase: which primitives' boxes overlap. A bounding volume hierarchy with refit (for
 //! meshes that move every step) and parallel, deterministic self- and cross-traversal; a sweep
-//! and prune along x for small, dense sets (self-overlaps only).
+//! and prune along x for small, dense sets (self-overlaps only); traversal fronts that let the
+//! next traversal of refitted hierarchies start where the last one stopped.
 
 pub mod bvh;
+pub mod front;
 pub mod sweep;
 
 pub use bvh::Bvh;
+pub use front::Front;
 pub use sweep::SweepAndPrune;
 
 /// Test input: boxes given by centre and half extent (the proptests' random boxes).

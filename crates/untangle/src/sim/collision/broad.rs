@@ -1,12 +1,15 @@
 //! Broad phase of the collision handling: bounding volume hierarchies over the swept boxes of
 //! cloth triangles and edges and of obstacle triangles and edges (start and end of the step,
 //! inflated by the largest thickness), refitted on every pass and rebuilt every few steps;
-//! candidate pairs in a deterministic order for any thread count.
+//! candidate pairs in a deterministic order for any thread count. The full traversals of
+//! [`BroadPhase::candidates`] start from where the last one stopped ([`crate::broad::Front`]).
+
+use std::sync::{Mutex, MutexGuard};
 
 use rayon::prelude::*;
 
 use super::{Pair, PairKind, Scene};
-use crate::broad::Bvh;
+use crate::broad::{Bvh, Front};
 use crate::geom::{Aabb, Vec3};
 
 /// Steps between full rebuilds of the hierarchies (refit in between).
@@ -40,6 +43,31 @@ pub struct BroadPhase {
     /// [`BroadPhase::update_changed`] (buffers kept across calls, filled in parallel).
     tri_changed: Vec<bool>,
     edge_changed: Vec<bool>,
+    /// Where the last traversals of [`BroadPhase::candidates`] stopped.
+    fronts: Fronts,
+}
+
+/// The traversal fronts of [`BroadPhase::candidates`] (vertex-triangle and edge-edge), behind
+/// locks so that the candidates can be asked through a shared reference.
+#[derive(Debug, Default)]
+struct Fronts {
+    vertex_triangle: Mutex<Front>,
+    edge_edge: Mutex<Front>,
+}
+
+impl Clone for Fronts {
+    fn clone(&self) -> Self {
+        Fronts {
+            vertex_triangle: Mutex::new(lock(&self.vertex_triangle).clone()),
+            edge_edge: Mutex::new(lock(&self.edge_edge).clone()),
+        }
+    }
+}
+
+/// The front behind `m` (a front is only ever replaced whole, so one left by a panic is still
+/// a valid front or an empty one).
+fn lock(m: &Mutex<Front>) -> MutexGuard<'_, Front> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 fn swept<const N: usize>(scene: &Scene, v: &[Vec3], nodes: [u32; N], margin: f64) -> Aabb {
@@ -360,13 +388,17 @@ impl BroadPhase {
         // per-vertex enumeration with sorted results gives them. Key: vertex (bits 33..),
         // obstacle flag (bit 32), triangle (bits 0..32).
         let vertex_pairs = || -> Vec<Pair> {
-            let mut keys: Vec<u64> = self.vert.cross_pairs(&self.tri, |p, t, o: &mut Vec<u64>| {
-                // Not a corner (spelled out: `contains` became a call in this closure).
-                let c = scene.triangles[t as usize];
-                if c[0] != p && c[1] != p && c[2] != p {
-                    o.push(((p as u64) << 33) | t as u64);
-                }
-            });
+            let mut front = lock(&self.fronts.vertex_triangle);
+            let mut keys: Vec<u64> =
+                self.vert
+                    .cross_pairs_tracked(&self.tri, &mut front, |p, t, o: &mut Vec<u64>| {
+                        // Not a corner (spelled out: `contains` became a call in this closure).
+                        let c = scene.triangles[t as usize];
+                        if c[0] != p && c[1] != p && c[2] != p {
+                            o.push(((p as u64) << 33) | t as u64);
+                        }
+                    });
+            drop(front);
             if !obs.is_empty() {
                 keys.par_extend(
                     (0..n as u32)
@@ -400,12 +432,16 @@ impl BroadPhase {
         let edges = scene.edges;
         let ne = edges.len();
         let edge_pairs = || -> Vec<(u32, u32)> {
-            let mut ee: Vec<(u32, u32)> = self.edge.self_pairs(|i, j, o: &mut Vec<(u32, u32)>| {
-                let (e, f) = (edges[i as usize], edges[j as usize]);
-                if e[0] != f[0] && e[0] != f[1] && e[1] != f[0] && e[1] != f[1] {
-                    o.push((i.min(j), i.max(j)));
-                }
-            });
+            let mut front = lock(&self.fronts.edge_edge);
+            let mut ee: Vec<(u32, u32)> =
+                self.edge
+                    .self_pairs_tracked(&mut front, |i, j, o: &mut Vec<(u32, u32)>| {
+                        let (e, f) = (edges[i as usize], edges[j as usize]);
+                        if e[0] != f[0] && e[0] != f[1] && e[1] != f[0] && e[1] != f[1] {
+                            o.push((i.min(j), i.max(j)));
+                        }
+                    });
+            drop(front);
             crate::radix::sort_by_bucket_then_key(&mut ee, (ne, ne), |p| p.0, |p| p.1);
             ee
         };
@@ -570,7 +606,8 @@ mod tests {
         #![proptest_config(ProptestConfig::with_cases(24))]
         /// [`BroadPhase::candidates`] against the brute-force oracle on crumpled sheets (with
         /// and without a floor obstacle) under random velocities: the same set, no duplicate,
-        /// in the canonical order (independent of the tree); and every pair that
+        /// in the canonical order (independent of the tree and of the traversal fronts left by
+        /// an earlier call); and every pair that
         /// CCD over *all* pairs finds colliding is among the candidates (superset of the true
         /// pairs).
         #[test]
@@ -612,6 +649,8 @@ mod tests {
             let mut broad = BroadPhase::default();
             broad.update(&scene, &v, margin, true);
             if rebuild_then_refit {
+                // A first traversal leaves its fronts, which the one after the refit starts from.
+                let _ = broad.candidates(&scene, &v, margin);
                 v = (0..n).map(|_| rv(&mut rng)).collect();
                 broad.update(&scene, &v, margin, false);
             }
