@@ -128,10 +128,11 @@ pub struct Args {
     pub revoke_levels: u32,
     /// Soft impact zones of the loop's simulator (ours, `sim::ZoneMotion::soft_levels`): a
     /// new impact zone keeps half its deformation, halved again each time it collides again,
-    /// and turns rigid after this many halvings. 0 = Bridson's rigid zones. More levels let
-    /// pulled edges shorten through a zone (8: exploded handkerchief seeds 1-20 median 98
-    /// steps against 120.5, but 18 / 20 resolved; docs/cha-ko.md, "The simulator inside the
-    /// loop").
+    /// and turns rigid after this many halvings; 0 = Bridson's rigid zones. Zones are what
+    /// most often keeps a pulled edge from shortening in a step. 16 instead of the default 4:
+    /// exploded handkerchief seeds 1-50 median 105.5 steps (50 / 50) against 117, but seeds
+    /// 51-100 115 (49 / 50) against 111, so over 100 seeds the same 99 / 100 and median 113
+    /// (docs/cha-ko.md, "The simulator inside the loop").
     #[arg(long, default_value_t = ResolveParams::default().sim.zone_motion.soft_levels)]
     pub zone_soft_levels: u32,
     /// The loop's time integrator: `baraff-witkin` (the default: resolves the most),
