@@ -44,7 +44,8 @@ fn main() {
         let mut p = ResolveParams::default();
         p.sim.gravity = Vec3::zeros();
         p.max_steps = max_steps as usize;
-        // UNTANGLE_INTEGRATOR=projective: projective dynamics (see `common`).
+        // UNTANGLE_INTEGRATOR=projective: projective dynamics; the loop simulator's material,
+        // damping, CG, CCD and friction knobs CHAKO_SIM_* and CHAKO_EPS (see `common`).
         common::loop_params(&mut p);
         // Parameter experiments: CHAKO_SLIT=0|1 (slit ridges, on by default), CHAKO_SLIT_STALL, CHAKO_REGIONLESS_AFTER (0 = off), CHAKO_MAX_LEVEL, CHAKO_HOLD, CHAKO_REVOKE, CHAKO_GAMMA,
         // CHAKO_PERSIST, CHAKO_MIXED (0 1 2), CHAKO_AVOID_LOOP_PULL, CHAKO_LAST_RESORT,

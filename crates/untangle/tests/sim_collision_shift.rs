@@ -80,3 +80,55 @@ fn collision_shift_is_the_distance_to_the_collision_free_step() {
         assert!((0..lower).any(|i| free[lower + i].y < free[i].y));
     }
 }
+
+/// `Simulator::solved_velocities` are the solve's velocities before the collision handling:
+/// stepped from the start positions they give the collision-free step's end positions (the
+/// oracle of the test above), while the simulator's own velocities are the held ones; empty
+/// before the first step and with collisions off.
+#[test]
+fn solved_velocities_give_the_collision_free_end_positions() {
+    let below = handkerchief("a", 6, 6, 0.3, 0.3, |p| Vec3::new(p.x, 0.0, p.y));
+    let above = handkerchief("b", 6, 6, 0.3, 0.3, |p| Vec3::new(p.x, 0.01, p.y));
+    let merged = AnalysisMesh::merge_cloth(&[below.clone(), above]).unwrap();
+    let g = Garment::new(merged).unwrap();
+    let nv = g.mesh.positions.len();
+    let lower = below.positions.len();
+    let v: Vec<Vec3> = (0..nv)
+        .map(|i| Vec3::new(0.0, if i < lower { 0.0 } else { -1.0 }, 0.0))
+        .collect();
+    let policy = UniformThickness(1e-3);
+    let p = SimParams {
+        gravity: Vec3::zeros(),
+        ..SimParams::default()
+    };
+    let h = p.dt;
+    let x0 = g.mesh.positions.clone();
+    let mut free = Simulator::new(
+        &g,
+        SimParams {
+            collisions: false,
+            ..p.clone()
+        },
+    )
+    .unwrap();
+    free.set_velocities(&v).unwrap();
+    free.step(&policy);
+    assert!(free.solved_velocities().is_empty());
+    let mut held = Simulator::new(&g, p).unwrap();
+    assert!(held.solved_velocities().is_empty());
+    held.set_velocities(&v).unwrap();
+    held.step(&policy);
+    let vs = held.solved_velocities();
+    assert_eq!(vs.len(), nv);
+    let mut differs = false;
+    for i in 0..nv {
+        let solved_end = x0[i] + vs[i] * h;
+        assert!(
+            (solved_end - free.positions()[i]).norm() < 1e-12,
+            "vertex {i}: {solved_end} vs {}",
+            free.positions()[i]
+        );
+        differs |= (vs[i] - held.velocities()[i]).norm() * h > 1e-3;
+    }
+    assert!(differs, "the collision handling changed some velocity");
+}

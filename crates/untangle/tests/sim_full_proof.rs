@@ -344,11 +344,17 @@ fn impact_zones_and_stall_alone_keep_the_folding_sheet_clean() {
         spin: false,
         soft_levels: 4,
     };
+    // The Cha & Ko loop's setting (`ResolveParams::sim`).
+    let soft16 = ZoneMotion {
+        spin: true,
+        soft_levels: 16,
+    };
     for (zones_cap, motion, name) in [
         (1000, rigid, "zones"),
         (1000, translating, "translating zones"),
         (1000, soft, "soft zones"),
         (1000, soft_translating, "soft translating zones"),
+        (1000, soft16, "soft zones, 16 levels"),
         (1, rigid, "stall"),
     ] {
         let (cloth, mut sim, obs) = folding_sheet(10);

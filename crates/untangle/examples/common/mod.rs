@@ -83,7 +83,8 @@ pub fn integrator_params(mut p: untangle::sim::SimParams) -> untangle::sim::SimP
 /// (`ResolveParams::adaptive`: projective dynamics, Baraff & Witkin after a stall), with
 /// `UNTANGLE_ADAPTIVE_STALL` stalled steps before the switch and `UNTANGLE_ADAPTIVE_BW` steps of
 /// Baraff & Witkin then (0: for the rest of the run); `pd` / `bw` (or any other value) turn it
-/// off; unset keeps `p`'s choice. `CHAKO_DT` sets the loop's time step.
+/// off; unset keeps `p`'s choice. `CHAKO_DT` sets the loop's time step, `CHAKO_EPS` the
+/// green-green thickness (`Params::eps`); [`sim_knobs`] the simulator's material and solver.
 pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
     let env = std::env::var("UNTANGLE_INTEGRATOR").ok();
     if env.as_deref() == Some("adaptive") {
@@ -111,12 +112,66 @@ pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
     {
         p.projective_cg_cap = Some(k);
     }
+    sim_knobs(&mut p.sim);
     // CHAKO_DT: the loop's time step (`Params::dt`, Cha & Ko's 0.02 s by default).
     if let Some(dt) = std::env::var("CHAKO_DT")
         .ok()
         .and_then(|s| s.parse::<f64>().ok())
     {
         p.cha_ko.dt = dt;
+    }
+    if let Some(e) = std::env::var("CHAKO_EPS")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+    {
+        p.cha_ko.eps = e;
+    }
+}
+
+/// The loop simulator's material and solver settings from the environment (each unset
+/// variable keeps `p`'s value): `CHAKO_SIM_STIFF` multiplies the stretch and shear stiffness,
+/// `CHAKO_SIM_DENSITY` sets the area density (kg/m^2), `CHAKO_SIM_DAMP_MASS` /
+/// `CHAKO_SIM_DAMP_STIFF` the mass- / stiffness-proportional damping, `CHAKO_SIM_CG_TOL` /
+/// `CHAKO_SIM_CG_MAX` CG's tolerance and iteration cap, `CHAKO_SIM_IMPULSES` the CCD impulse
+/// passes before impact zones, `CHAKO_SIM_FRICTION` the cloth-cloth friction,
+/// `CHAKO_SIM_REACH` (0 / 1) `contacts_within_reach`, `CHAKO_SIM_CCD_RATIO` the fraction of a
+/// pair's thickness CCD guarantees.
+pub fn sim_knobs(p: &mut untangle::sim::SimParams) {
+    let env = |k: &str| {
+        std::env::var(k)
+            .ok()
+            .map(|s| s.parse::<f64>().unwrap_or_else(|_| panic!("{k}: a number")))
+    };
+    if let Some(v) = env("CHAKO_SIM_STIFF") {
+        p.stretch_stiffness *= v;
+        p.shear_stiffness *= v;
+    }
+    if let Some(v) = env("CHAKO_SIM_DENSITY") {
+        p.density = v;
+    }
+    if let Some(v) = env("CHAKO_SIM_DAMP_MASS") {
+        p.damping_mass = v;
+    }
+    if let Some(v) = env("CHAKO_SIM_DAMP_STIFF") {
+        p.damping_stiffness = v;
+    }
+    if let Some(v) = env("CHAKO_SIM_CG_TOL") {
+        p.cg_tolerance = v;
+    }
+    if let Some(v) = env("CHAKO_SIM_CG_MAX") {
+        p.cg_max_iterations = v as usize;
+    }
+    if let Some(v) = env("CHAKO_SIM_IMPULSES") {
+        p.max_impulse_iterations = v as usize;
+    }
+    if let Some(v) = env("CHAKO_SIM_FRICTION") {
+        p.friction = v;
+    }
+    if let Some(v) = env("CHAKO_SIM_REACH") {
+        p.contacts_within_reach = v != 0.0;
+    }
+    if let Some(v) = env("CHAKO_SIM_CCD_RATIO") {
+        p.ccd_ratio = v;
     }
 }
 

@@ -307,6 +307,9 @@ pub struct Simulator {
     dv_prev: Vec<Vec3>,
     /// Projective-dynamics state (built on the first projective step).
     pd: Option<PdState>,
+    /// The last step's velocities as the implicit solve left them, before the collision
+    /// handling (empty before the first step or with collisions off).
+    solved_v: Vec<Vec3>,
     steps: u64,
     time: f64,
 }
@@ -421,6 +424,7 @@ impl Simulator {
             contact_impulse: vec![0.0; n],
             dv_prev: vec![Vec3::zeros(); n],
             pd: None,
+            solved_v: Vec::new(),
             steps: 0,
             time: 0.0,
         };
@@ -581,6 +585,14 @@ impl Simulator {
     /// Velocities of the cloth.
     pub fn velocities(&self) -> &[Vec3] {
         &self.v
+    }
+
+    /// The last step's velocities as its implicit solve left them, before the collision
+    /// handling changed them (empty before the first step, or when collisions are off): the
+    /// solve's end positions are `x_before + h v`. For diagnostics (how much of a step's motion
+    /// the collision handling removed, e.g. in the Cha & Ko loop).
+    pub fn solved_velocities(&self) -> &[Vec3] {
+        &self.solved_v
     }
 
     /// Lumped vertex masses (kg).
@@ -1543,9 +1555,10 @@ impl Simulator {
             Default::default()
         };
         self.resting = std::mem::take(&mut collisions.resting);
-        let collision_shift = solved.map_or_else(CollisionShift::default, |s| {
-            CollisionShift::between(&s, &v, h)
+        let collision_shift = solved.as_ref().map_or_else(CollisionShift::default, |s| {
+            CollisionShift::between(s, &v, h)
         });
+        self.solved_v = solved.unwrap_or_default();
         let t3 = Instant::now();
         for i in 0..n {
             self.x[i] += v[i] * h;

@@ -1089,7 +1089,7 @@ mod tests {
                 (p, l)
             };
             let (p0, l0) = momenta(&v0);
-            for (spin_on, soft) in [(true, 0), (false, 0), (true, 4), (false, 4)] {
+            for (spin_on, soft) in [(true, 0), (false, 0), (true, 4), (false, 4), (true, 16)] {
                 let motion = ZoneMotion {
                     spin: spin_on,
                     soft_levels: soft,
