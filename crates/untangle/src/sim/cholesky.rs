@@ -78,6 +78,13 @@ pub struct ScalarCholesky {
     /// The supernodal layout of the factor for [`ScalarCholesky::solve_increment_with`]'s own
     /// solve (`None` for a simplicial factor, which faer solves).
     layout: Option<Layout>,
+    /// Recomputes only the supernodes a matrix change reaches (`None`: simplicial factor or
+    /// another product kernel; every factorisation is then a full one).
+    partial: Option<super::refactor::PartialRefactor>,
+    /// The matrix values of the held factor (to find the changed columns).
+    prev_values: Vec<f64>,
+    /// Supernodes recomputed by the last factorisation and their count (`None`: full).
+    last_partial: Option<(usize, usize)>,
     /// Scratch of the own solve: the permuted iterate, four lanes (`x`, `y`, `z`, unused) per
     /// row, and the split's logs.
     lanes: std::sync::Mutex<LaneScratch>,
@@ -283,15 +290,26 @@ impl Layout {
             "the copies follow the factor's values"
         );
         l.resize(end, 0.0);
-        let (factor, copies) = l.split_at_mut(base);
-        for s in self.nodes.iter().filter(|s| s.tval != usize::MAX) {
-            let (ld, stride) = (s.size + s.m, row_stride(s.size));
-            let out = &mut copies[s.tval - base..s.tval - base + stride * s.m];
-            let block = &factor[s.val..s.val + ld * s.size];
-            for (c, col) in block.chunks_exact(ld).enumerate() {
-                for (o, &v) in out.iter_mut().skip(c).step_by(stride).zip(&col[s.size..]) {
-                    *o = v;
-                }
+        for s in 0..self.nodes.len() {
+            self.copy_row_major(l, s);
+        }
+    }
+
+    /// Writes the row-major copy of supernode `s` (if it has one) from its values in `l`
+    /// (the single-precision factor values followed by the copies, see
+    /// [`Layout::append_row_major`]).
+    fn copy_row_major(&self, l: &mut [f32], s: usize) {
+        let s = &self.nodes[s];
+        if s.tval == usize::MAX {
+            return;
+        }
+        let (ld, stride) = (s.size + s.m, row_stride(s.size));
+        let (factor, copies) = l.split_at_mut(s.tval);
+        let out = &mut copies[..stride * s.m];
+        let block = &factor[s.val..s.val + ld * s.size];
+        for (c, col) in block.chunks_exact(ld).enumerate() {
+            for (o, &v) in out.iter_mut().skip(c).step_by(stride).zip(&col[s.size..]) {
+                *o = v;
             }
         }
     }
@@ -1324,7 +1342,11 @@ impl ScalarCholesky {
             Vec::new(),
         );
         let layout = Layout::new(&symbolic, n);
+        let partial = super::refactor::PartialRefactor::new(&symbolic, &col_ptr, &row_idx);
         Some(ScalarCholesky {
+            partial,
+            prev_values: Vec::new(),
+            last_partial: None,
             layout,
             lanes: std::sync::Mutex::new((Vec::new(), [Vec::new(), Vec::new()])),
             n,
@@ -1355,7 +1377,12 @@ impl ScalarCholesky {
     /// Factorises the matrix with value `values[slot]` per pattern slot (symmetric), the rows
     /// and columns of nodes with `fixed[i]` replaced by their diagonal. Returns `false` (and
     /// holds no factor) if it is not numerically positive definite.
+    ///
+    /// After a successful factorisation, only the supernodes that the changed columns reach are
+    /// recomputed ([`super::refactor`]): the same bits as a full factorisation.
     pub fn factor(&mut self, pattern: &BsrPattern, values: &[f64], fixed: &[bool]) -> bool {
+        std::mem::swap(&mut self.values, &mut self.prev_values);
+        self.values.resize(self.row_idx.len(), 0.0);
         for j in 0..self.n {
             for k in self.col_ptr[j]..self.col_ptr[j + 1] {
                 let i = self.row_idx[k];
@@ -1378,6 +1405,55 @@ impl ScalarCholesky {
             ),
             &self.values,
         );
+        self.last_partial = None;
+        if self.factored && self.prev_values.len() == self.values.len() {
+            if let Some(partial) = &mut self.partial {
+                let mut changed = Vec::new();
+                for j in 0..self.n {
+                    for k in self.col_ptr[j]..self.col_ptr[j + 1] {
+                        if self.values[k].to_bits() != self.prev_values[k].to_bits() {
+                            changed.push(j);
+                            changed.push(self.row_idx[k]);
+                        }
+                    }
+                }
+                let recomputed = partial.refactor(
+                    &self.symbolic,
+                    &mut self.factor,
+                    &self.values,
+                    &changed,
+                    MemStack::new(&mut self.scratch),
+                );
+                if let Some(r) = recomputed {
+                    self.last_partial = Some((r, partial.supernodes()));
+                    // Only the recomputed supernodes' values changed: check and round those.
+                    let SymbolicCholeskyRaw::Supernodal(sn) = self.symbolic.raw() else {
+                        unreachable!("a partial refactorisation is supernodal");
+                    };
+                    let val = sn.col_ptr_for_val();
+                    let ok = partial.recomputed().all(|s| {
+                        self.factor[val[s]..val[s + 1]]
+                            .iter()
+                            .all(|v| v.is_finite())
+                    });
+                    self.factored = ok;
+                    if !ok {
+                        self.factor32.clear();
+                        return false;
+                    }
+                    for s in partial.recomputed() {
+                        let (f, f32s) = (&self.factor[val[s]..val[s + 1]], &mut self.factor32);
+                        for (o, &v) in f32s[val[s]..val[s + 1]].iter_mut().zip(f) {
+                            *o = v as f32;
+                        }
+                        if let Some(layout) = &self.layout {
+                            layout.copy_row_major(&mut self.factor32, s);
+                        }
+                    }
+                    return true;
+                }
+            }
+        }
         let ok = self
             .symbolic
             .factorize_numeric_llt::<f64>(
@@ -1389,8 +1465,20 @@ impl ScalarCholesky {
                 MemStack::new(&mut self.scratch),
                 Default::default(),
             )
-            .is_ok()
-            && self.factor.iter().all(|v| v.is_finite());
+            .is_ok();
+        self.finish_factor(ok)
+    }
+
+    /// Supernodes recomputed by the last [`ScalarCholesky::factor`] and the supernode count, if
+    /// it was a partial refactorisation (`None`: a full one).
+    pub fn last_partial(&self) -> Option<(usize, usize)> {
+        self.last_partial
+    }
+
+    /// The end of [`ScalarCholesky::factor`]: checks the values, rounds them for the
+    /// single-precision solves.
+    fn finish_factor(&mut self, ok: bool) -> bool {
+        let ok = ok && self.factor.iter().all(|v| v.is_finite());
         self.factored = ok;
         self.factor32.clear();
         if ok {
@@ -2052,6 +2140,109 @@ mod tests {
                             assert_eq!(inner[i][c].to_bits(), want_s[i][c].to_bits());
                         }
                     }
+                }
+            }
+        }
+    }
+
+    /// Partial refactorisation (`sim::refactor`) against a full one by faer of the same new
+    /// matrix: the same bits in the double- and single-precision factors, after changes of a few
+    /// nearby nodes' rows and columns (as the Cha & Ko loop's rest edits make), of fixed flags,
+    /// and of every value; fewer supernodes recomputed for a local change; a change that makes
+    /// the matrix indefinite is reported, and the next factorisation is right again.
+    #[test]
+    fn partial_refactor_gives_the_bits_of_a_full_one() {
+        for (seed, (w, h)) in [(40usize, 40usize), (70, 25), (9, 7)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(100 + seed as u64);
+            let n = w * h;
+            let pattern = grid_pattern(w, h);
+            let (_, mut values, mut fixed) =
+                random_spd(&pattern, &mut rng, -1.0..0.0, 0.05, 0.1..1.0);
+            let mut chol =
+                ScalarCholesky::with_threshold(&pattern, SupernodalThreshold::FORCE_SUPERNODAL)
+                    .unwrap();
+            if chol.partial.is_none() {
+                // Not x86-64 with AVX2 and FMA: every factorisation is a full one.
+                return;
+            }
+            assert!(chol.factor(&pattern, &values, &fixed));
+            assert_eq!(chol.last_partial(), None);
+            for round in 0..8 {
+                match round {
+                    // Every value scaled.
+                    5 => values.iter_mut().for_each(|v| *v *= 1.5),
+                    // A fixed flag flipped.
+                    6 => {
+                        let i = rng.random_range(0..n);
+                        fixed[i] = !fixed[i];
+                    }
+                    // Indefinite: one diagonal entry negative; the next round repairs it.
+                    7 => {
+                        let i = rng.random_range(0..n);
+                        values[pattern.diag[i] as usize] = -1.0;
+                        assert!(!chol.factor(&pattern, &values, &fixed));
+                        let mut full = ScalarCholesky::with_threshold(
+                            &pattern,
+                            SupernodalThreshold::FORCE_SUPERNODAL,
+                        )
+                        .unwrap();
+                        assert!(!full.factor(&pattern, &values, &fixed));
+                        values[pattern.diag[i] as usize] = 1e3;
+                    }
+                    // A few nearby nodes' rows and columns (symmetric).
+                    _ => {
+                        let c = rng.random_range(0..n);
+                        for i in [c, (c + 1) % n, (c + w) % n] {
+                            for k in pattern.offsets[i] as usize..pattern.offsets[i + 1] as usize {
+                                let j = pattern.cols[k] as usize;
+                                if j != i {
+                                    let v = values[k] * rng.random_range(0.5..1.5);
+                                    values[k] = v;
+                                    let t = (pattern.offsets[j] as usize
+                                        ..pattern.offsets[j + 1] as usize)
+                                        .find(|&t| pattern.cols[t] as usize == i)
+                                        .unwrap();
+                                    values[t] = v;
+                                }
+                            }
+                            values[pattern.diag[i] as usize] *= rng.random_range(1.0..2.0);
+                        }
+                    }
+                }
+                assert!(
+                    chol.factor(&pattern, &values, &fixed),
+                    "seed {seed} round {round}"
+                );
+                let mut full =
+                    ScalarCholesky::with_threshold(&pattern, SupernodalThreshold::FORCE_SUPERNODAL)
+                        .unwrap();
+                assert!(full.factor(&pattern, &values, &fixed));
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&chol.factor),
+                    bits(&full.factor),
+                    "seed {seed} round {round}"
+                );
+                assert!(chol
+                    .factor32
+                    .iter()
+                    .zip(&full.factor32)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()));
+                assert_eq!(chol.factor32.len(), full.factor32.len());
+                if round == 7 {
+                    // After a failed factorisation the next one is full.
+                    assert_eq!(chol.last_partial(), None);
+                    continue;
+                }
+                let (recomputed, total) = chol.last_partial().expect("a partial refactorisation");
+                if round < 5 && n > 100 {
+                    assert!(recomputed < total / 2, "{recomputed} of {total}");
+                }
+                if round == 5 {
+                    assert_eq!(recomputed, total);
                 }
             }
         }

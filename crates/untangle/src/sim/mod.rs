@@ -31,6 +31,7 @@ pub mod obstacle;
 pub mod pcg;
 pub mod policy;
 pub mod projective;
+pub mod refactor;
 pub mod report;
 pub mod rest;
 pub mod sparse;
