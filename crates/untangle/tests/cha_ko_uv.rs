@@ -246,7 +246,13 @@ fn shrink_moves_both_red_edge_ends_toward_the_third_vertex() {
 #[test]
 fn revoke_returns_exactly_to_the_original_uv() {
     let g = fan(&CONCAVE);
-    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    // The paper's rate (Sec. 5.1.1) also once clean (by default a clean garment is restored at
+    // once: `clean_colouring_revokes_at_the_clean_rate`).
+    let p = Params {
+        revoke_levels_when_clean: 0,
+        ..Params::default()
+    };
+    let mut ck = ChaKo::new(&g, p).unwrap();
     let red = coloring(&g, &[0], &[], &[]);
     for _ in 0..7 {
         step(&mut ck, &red);
@@ -749,23 +755,31 @@ fn revoke_trace(ck: &mut ChaKo, col: &Coloring, v: u32) -> Vec<u32> {
 fn clean_colouring_revokes_at_the_clean_rate() {
     let n = 6;
     let (a, far) = (gid(n, 1, 1), gid(n, 5, 5));
-    // Default: one level per step, clean or not.
-    let (g, mut ck) = pulled(Params::default(), a, far, 4);
-    assert_eq!(revoke_trace(&mut ck, &green(&g), a), vec![4, 3, 2, 1]);
-    // Clean rate 100: an all-green garment (no red triangle: nothing intersects) is restored in
-    // one step, exactly.
-    let p = Params {
-        revoke_levels_when_clean: 100,
+    // The paper's rate throughout (clean rate 0: as `revoke_levels_per_step`): one level per
+    // step.
+    let one = Params {
+        revoke_levels_when_clean: 0,
         ..Params::default()
     };
-    let (g, mut ck) = pulled(p.clone(), a, far, 4);
+    let (g, mut ck) = pulled(one, a, far, 4);
+    assert_eq!(revoke_trace(&mut ck, &green(&g), a), vec![4, 3, 2, 1]);
+    // Default: an all-green garment (no red triangle: nothing intersects) is restored in one
+    // step, exactly.
+    let (g, mut ck) = pulled(Params::default(), a, far, 4);
     assert_eq!(revoke_trace(&mut ck, &green(&g), a), vec![4]);
     assert!(ck.is_restored());
     assert_eq!(ck.current_uv(), ck.original_uv());
     // Not clean (`far` stays red): `a`'s finished pull is revoked one level per step.
-    let (g, mut ck) = pulled(p, a, far, 4);
+    let (g, mut ck) = pulled(Params::default(), a, far, 4);
     let col = coloring(&g, &[far], &[], &[]);
     assert_eq!(revoke_trace(&mut ck, &col, a), vec![4, 3, 2, 1]);
+    // A clean rate of 2.
+    let two = Params {
+        revoke_levels_when_clean: 2,
+        ..Params::default()
+    };
+    let (g, mut ck) = pulled(two, a, far, 5);
+    assert_eq!(revoke_trace(&mut ck, &green(&g), a), vec![5, 3, 1]);
 }
 
 #[test]
