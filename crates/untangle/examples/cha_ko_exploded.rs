@@ -101,6 +101,7 @@ fn main() {
             p.cha_ko.gamma = v;
         }
         common::trial_params(&mut p.cha_ko);
+        common::schedule_params(&mut p.cha_ko);
         // CHAKO_TRACE=1: one line per step on stderr.
         let trace = env("CHAKO_TRACE").is_some_and(|v| v != 0.0);
         let t = Instant::now();
@@ -137,6 +138,10 @@ fn main() {
             trial[2] += (st.trial.red_increase_accepted > 0) as usize;
         });
         trial_total.iter_mut().zip(trial).for_each(|(t, x)| *t += x);
+        // CHAKO_DIAG=1: where the steps went (phases, waiting steps, finesse lives) on stderr.
+        if env("CHAKO_DIAG").is_some_and(|v| v != 0.0) {
+            diagnose(seed, &r, env("CHAKO_DIAG") == Some(2.0));
+        }
         let wall = t.elapsed().as_secs_f64();
         let increases: Vec<(usize, usize, usize)> = reds
             .windows(2)
@@ -203,4 +208,114 @@ fn main() {
         trial_total[2],
         t_all.elapsed().as_secs_f64()
     );
+}
+
+/// Where the steps of one run went (`CHAKO_DIAG=1`), one block on stderr: the phases (red
+/// vertices left / no red vertex but intersecting / clean and only revoking), steps that only
+/// waited (nothing started or advanced), what blocked candidates, and the finesse lives by kind
+/// and end (the paper's Table 1 measures start -> completion, t*).
+/// With `log` (`CHAKO_DIAG=2`) also every operation of the finesse log, one line each.
+fn diagnose(seed: u64, r: &Resolver, log_lines: bool) {
+    use untangle::methods::cha_ko::{EndReason, OpKind};
+    let h = r.history();
+    let (mut red, mut nored, mut clean, mut wait, mut wait_red) = (0, 0, 0, 0, 0);
+    let (mut bf, mut bs, mut tit, mut paused, mut sat, mut act, mut started) =
+        (0, 0, 0, 0, 0, 0, 0);
+    for st in h {
+        let u = &st.uv;
+        if st.intersecting_pairs == 0 {
+            clean += 1;
+        } else if st.red_vertices > 0 {
+            red += 1;
+        } else {
+            nored += 1;
+        }
+        let moves = u.pulls_started + u.shrinks_started + u.pulls_continued + u.shrinks_continued;
+        if moves == 0 && st.intersecting_pairs > 0 {
+            wait += 1;
+            wait_red += (st.red_vertices > 0) as usize;
+        }
+        bf += u.blocked_fan;
+        bs += u.blocked_subject;
+        tit += u.tit_rejected;
+        paused += u.paused;
+        sat += u.saturated_ops;
+        act += u.active_ops;
+        started += u.pulls_started + u.shrinks_started;
+    }
+    let n = h.len().max(1);
+    eprintln!(
+        "seed {seed}: {} steps: red>0 {red}, red=0 intersecting {nored}, clean {clean}; wait-only {wait} ({wait_red} with red); per step: active ops {:.1}, started {:.2}, blocked fan {:.1} subject {:.1}, tit rejected {:.1}, paused {:.1}, saturated {:.1}",
+        h.len(),
+        act as f64 / n as f64,
+        started as f64 / n as f64,
+        bf as f64 / n as f64,
+        bs as f64 / n as f64,
+        tit as f64 / n as f64,
+        paused as f64 / n as f64,
+        sat as f64 / n as f64,
+    );
+    let log = r.chako().finesse_log();
+    for kind in [OpKind::Pull, OpKind::Shrink] {
+        for end in [
+            Some(EndReason::Finished),
+            Some(EndReason::Superseded),
+            Some(EndReason::Abandoned),
+            None,
+        ] {
+            let v: Vec<_> = log
+                .iter()
+                .filter(|f| f.kind == kind && f.end == end)
+                .collect();
+            if v.is_empty() {
+                continue;
+            }
+            let mean = |f: &dyn Fn(&&untangle::methods::cha_ko::FinesseRecord) -> Option<f64>| {
+                let xs: Vec<f64> = v.iter().filter_map(f).collect();
+                if xs.is_empty() {
+                    f64::NAN
+                } else {
+                    xs.iter().sum::<f64>() / xs.len() as f64
+                }
+            };
+            eprintln!(
+                "  {kind:?} {end:?}: {} ops, start->end {:.1}, end->restored {:.1}, max level {:.1}, saturated {}",
+                v.len(),
+                mean(&|f| f.end_step.map(|e| (e - f.start_step) as f64)),
+                mean(&|f| f.end_step.zip(f.restored_step).map(|(e, s)| (s - e) as f64)),
+                mean(&|f| Some(f.max_level as f64)),
+                v.iter().filter(|f| f.saturated_step.is_some()).count()
+            );
+        }
+    }
+    // Per 10-step window: mean red vertices, pairs, active ops, started, finished.
+    let mut line = String::new();
+    for (w, chunk) in h.chunks(10).enumerate() {
+        let fin = log
+            .iter()
+            .filter(|f| f.end == Some(EndReason::Finished))
+            .filter(|f| f.end_step.is_some_and(|e| (e as usize) / 10 == w))
+            .count();
+        let m = |g: &dyn Fn(&untangle::methods::cha_ko::LoopStep) -> usize| {
+            chunk.iter().map(g).sum::<usize>() as f64 / chunk.len() as f64
+        };
+        line += &format!(
+            " [{}: p{:.0} r{:.0} a{:.1} s{:.1} f{fin}]",
+            w * 10,
+            m(&|s| s.intersecting_pairs),
+            m(&|s| s.red_vertices),
+            m(&|s| s.uv.active_ops),
+            m(&|s| s.uv.pulls_started + s.uv.shrinks_started),
+        );
+    }
+    eprintln!("  windows (pairs, red, active, started, finished):{line}");
+    if log_lines {
+        for f in log {
+            eprintln!(
+                "  op {} {:?} {:?} -> {} tri {:?}: start {} end {:?} {:?} restored {:?} max level {} saturated {:?} fallback {:?}",
+                f.id, f.kind, f.subjects, f.target, f.triangle, f.start_step, f.end_step, f.end,
+                f.restored_step, f.max_level, f.saturated_step, f.fallback
+            );
+        }
+    }
 }

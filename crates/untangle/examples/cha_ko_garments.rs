@@ -70,6 +70,8 @@ fn main() {
         // CHAKO_SLIT_STALL.
         let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
         common::trial_params(&mut p.cha_ko);
+        // CHAKO_REVOKE_CLEAN, CHAKO_REVOKE_FINISHED, CHAKO_HOLD_PROGRESS, CHAKO_PULL_ORDER.
+        common::schedule_params(&mut p.cha_ko);
         if let Some(v) = env("CHAKO_REVOKE") {
             p.cha_ko.revoke_levels_per_step = v as u32;
         }

@@ -73,6 +73,34 @@ fn rudimentary_cases_resolve() {
 }
 
 #[test]
+fn revoking_everything_once_clean_only_shortens_the_tail() {
+    // `Params::revoke_levels_when_clean` (ours): once nothing intersects, the uv edits are
+    // undone at that rate. Oracle: the same run revoking one level per step throughout (the
+    // paper's rate) is identical up to its first clean step; with everything undone at once the
+    // loop ends one step later, clean (independent analysis in `resolves_with`), uv restored.
+    let g = scene_garment(&untangle::scenes::by_name("bbii", None, 1).unwrap());
+    let run = |k: u32| {
+        let mut p = params(400);
+        p.cha_ko.revoke_levels_when_clean = k;
+        let s = resolves_with(&g, p.clone());
+        let mut r = Resolver::new(&g, p).unwrap();
+        r.run(|_| {}).unwrap();
+        let pairs: Vec<usize> = r.history().iter().map(|h| h.intersecting_pairs).collect();
+        (s, pairs)
+    };
+    let (one, pairs_one) = run(1);
+    let (all, pairs_all) = run(200);
+    let clean = one.clean_at.expect("clean") as usize;
+    assert_eq!(all.clean_at, Some(clean as u64));
+    assert_eq!(pairs_all[..=clean], pairs_one[..=clean]);
+    assert_eq!(all.steps, clean as u64 + 1);
+    assert!(
+        one.steps > clean as u64 + 1,
+        "one level per step leaves a tail"
+    );
+}
+
+#[test]
 fn cross_resolves_with_the_regionless_fallback() {
     // CROSS: its BB half becomes a fold pinched through itself (an empty cut: no region, no red
     // vertex) and the paper's operations stall; the regionless fallback (ours, off by default,

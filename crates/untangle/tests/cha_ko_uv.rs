@@ -246,7 +246,13 @@ fn shrink_moves_both_red_edge_ends_toward_the_third_vertex() {
 #[test]
 fn revoke_returns_exactly_to_the_original_uv() {
     let g = fan(&CONCAVE);
-    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    // The paper's rate (Sec. 5.1.1) also once clean (by default a clean garment is restored at
+    // once: `clean_colouring_revokes_at_the_clean_rate`).
+    let p = Params {
+        revoke_levels_when_clean: 0,
+        ..Params::default()
+    };
+    let mut ck = ChaKo::new(&g, p).unwrap();
     let red = coloring(&g, &[0], &[], &[]);
     for _ in 0..7 {
         step(&mut ck, &red);
@@ -528,6 +534,47 @@ fn saturated_operation_is_abandoned_and_another_target_tried() {
 }
 
 #[test]
+fn held_operation_that_stopped_closing_in_is_abandoned_early() {
+    let g = fan(&SQUARE);
+    let params = Params {
+        max_level: 3,
+        hold_steps: 10,
+        hold_progress_steps: 2,
+        ..Params::default()
+    };
+    let col = coloring(&g, &[0], &[], &[]);
+    // `approach`: the world distance from the subject (vertex 0) to every ring vertex shrinks by
+    // 10 % per step, or stays (0.0).
+    let abandoned_at = |approach: f64| {
+        let mut ck = ChaKo::new(&g, params.clone()).unwrap();
+        let mut pos = g.mesh.positions.clone();
+        for s in 0..20 {
+            let r = ck.update_uv_with_coloring(&col, Some(&pos)).unwrap();
+            if r.abandoned > 0 {
+                assert_eq!(ck.finesse_log()[0].end, Some(EndReason::Abandoned));
+                return s;
+            }
+            for p in pos.iter_mut().skip(1) {
+                *p *= 1.0 - approach;
+            }
+        }
+        panic!("never abandoned");
+    };
+    // Saturated at step 2; its distance is first seen at step 3, and two steps without a new
+    // minimum end it at step 5 instead of 2 + hold_steps = 12.
+    assert_eq!(abandoned_at(0.0), 5);
+    assert_eq!(abandoned_at(0.1), 12);
+    // Off (0): the full hold, whatever the positions.
+    let off = Params {
+        hold_progress_steps: 0,
+        ..params.clone()
+    };
+    let mut ck = ChaKo::new(&g, off).unwrap();
+    let steps: Vec<usize> = (0..14).map(|_| step(&mut ck, &col).abandoned).collect();
+    assert_eq!(steps.iter().position(|&a| a > 0), Some(12));
+}
+
+#[test]
 fn nothing_to_operate_on_is_reported() {
     // An intersecting triangle but no red vertex and no red* triangle (e.g. a BLI path).
     let g = fan(&SQUARE);
@@ -674,6 +721,132 @@ fn pull_whose_target_turns_red_is_revoked_then_retargeted() {
     let op = ck.operations().next().unwrap();
     assert_ne!(op.target, 1);
     assert_eq!(ck.finesse_log()[0].end, Some(EndReason::Superseded));
+}
+
+/// Pulls `a` (grid 6 x 6) for `levels` steps while `far` is red too (its pull runs alongside),
+/// then returns the updater.
+fn pulled(params: Params, a: u32, far: u32, levels: usize) -> (Garment, ChaKo) {
+    let g = grid(6);
+    let mut ck = ChaKo::new(&g, params).unwrap();
+    let col = coloring(&g, &[a, far], &[], &[]);
+    for _ in 0..levels {
+        step(&mut ck, &col);
+    }
+    (g, ck)
+}
+
+/// Levels revoked per step for the operation whose subject is `v`, until it is restored.
+fn revoke_trace(ck: &mut ChaKo, col: &Coloring, v: u32) -> Vec<u32> {
+    let mut levels = Vec::new();
+    loop {
+        let level = ck
+            .operations()
+            .find(|o| o.subjects == vec![v])
+            .map(|o| o.level);
+        let Some(level) = level else { break };
+        levels.push(level);
+        step(ck, col);
+        assert!(levels.len() < 50);
+    }
+    levels
+}
+
+#[test]
+fn clean_colouring_revokes_at_the_clean_rate() {
+    let n = 6;
+    let (a, far) = (gid(n, 1, 1), gid(n, 5, 5));
+    // The paper's rate throughout (clean rate 0: as `revoke_levels_per_step`): one level per
+    // step.
+    let one = Params {
+        revoke_levels_when_clean: 0,
+        ..Params::default()
+    };
+    let (g, mut ck) = pulled(one, a, far, 4);
+    assert_eq!(revoke_trace(&mut ck, &green(&g), a), vec![4, 3, 2, 1]);
+    // Default: an all-green garment (no red triangle: nothing intersects) is restored in one
+    // step, exactly.
+    let (g, mut ck) = pulled(Params::default(), a, far, 4);
+    assert_eq!(revoke_trace(&mut ck, &green(&g), a), vec![4]);
+    assert!(ck.is_restored());
+    assert_eq!(ck.current_uv(), ck.original_uv());
+    // Not clean (`far` stays red): `a`'s finished pull is revoked one level per step.
+    let (g, mut ck) = pulled(Params::default(), a, far, 4);
+    let col = coloring(&g, &[far], &[], &[]);
+    assert_eq!(revoke_trace(&mut ck, &col, a), vec![4, 3, 2, 1]);
+    // A clean rate of 2.
+    let two = Params {
+        revoke_levels_when_clean: 2,
+        ..Params::default()
+    };
+    let (g, mut ck) = pulled(two, a, far, 5);
+    assert_eq!(revoke_trace(&mut ck, &green(&g), a), vec![5, 3, 1]);
+}
+
+#[test]
+fn finished_operations_revoke_at_their_own_rate() {
+    let n = 6;
+    let (a, far) = (gid(n, 1, 1), gid(n, 5, 5));
+    let p = Params {
+        revoke_levels_finished: 2,
+        ..Params::default()
+    };
+    // `a` turns green (finished) while `far` stays red: two levels per step.
+    let (g, mut ck) = pulled(p.clone(), a, far, 5);
+    let col = coloring(&g, &[far], &[], &[]);
+    assert_eq!(revoke_trace(&mut ck, &col, a), vec![5, 3, 1]);
+    assert_eq!(ck.finesse_log()[0].end, Some(EndReason::Finished));
+    // Its target turns red instead (superseded): one level per step.
+    let (g, mut ck) = pulled(p, a, far, 5);
+    let t = ck
+        .operations()
+        .find(|o| o.subjects == vec![a])
+        .unwrap()
+        .target;
+    let col = coloring(&g, &[a, t, far], &[], &[]);
+    assert_eq!(revoke_trace(&mut ck, &col, a), vec![5, 4, 3, 2, 1]);
+    assert_eq!(ck.finesse_log()[0].end, Some(EndReason::Superseded));
+}
+
+#[test]
+fn fewest_neighbours_order_starts_more_pulls() {
+    use untangle::methods::cha_ko::PullOrder;
+    let n = 4;
+    let g = grid(n);
+    let topo = &g.topology;
+    // b and two of its neighbours a, c that are not adjacent to each other, both numbered
+    // after b: in index order b goes first and blocks both (Case 1).
+    let (b, a, c) = (0..g.mesh.positions.len() as u32)
+        .flat_map(|b| {
+            let nb = topo.vertex_neighbors.row(b as usize).to_vec();
+            let pairs: Vec<(u32, u32, u32)> = nb
+                .iter()
+                .flat_map(|&a| nb.iter().map(move |&c| (b, a, c)))
+                .filter(|&(b, a, c)| b < a && a < c && topo.edge_between(a, c).is_none())
+                .collect();
+            pairs
+        })
+        .find(|&(b, _, _)| b > 0)
+        .unwrap();
+    let col = coloring(&g, &[a, b, c], &[], &[]);
+    assert_eq!(col.outmost_red, {
+        let mut v = vec![a, b, c];
+        v.sort();
+        v
+    });
+    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    let r = step(&mut ck, &col);
+    assert_eq!((r.pulls_started, r.blocked_fan), (1, 2));
+    assert_eq!(ck.operations().next().unwrap().subjects, vec![b]);
+    let p = Params {
+        pull_order: PullOrder::FewestOutmostNeighbours,
+        ..Params::default()
+    };
+    let mut ck = ChaKo::new(&g, p).unwrap();
+    let r = step(&mut ck, &col);
+    assert_eq!((r.pulls_started, r.blocked_fan), (2, 1));
+    let mut subjects: Vec<u32> = ck.operations().map(|o| o.subjects[0]).collect();
+    subjects.sort();
+    assert_eq!(subjects, vec![a, c]);
 }
 
 // ---------------------------------------------------------------------------------------------

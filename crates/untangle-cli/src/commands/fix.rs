@@ -135,6 +135,25 @@ pub struct Args {
     /// (docs/cha-ko.md, "The simulator inside the loop").
     #[arg(long, default_value_t = ResolveParams::default().sim.zone_motion.soft_levels)]
     pub zone_soft_levels: u32,
+    /// Levels revoked per step once nothing intersects (ours; default 200: everything at once;
+    /// 0: as `--revoke-levels`). The loop's tail after the first clean step only revokes; m-CCH
+    /// with an all-green colouring is full collision handling, so the cloth stays clean
+    /// (docs/cha-ko.md, "Where the steps go").
+    #[arg(long, default_value_t = untangle::methods::cha_ko::Params::default().revoke_levels_when_clean)]
+    pub revoke_levels_when_clean: u32,
+    /// Levels revoked per step for operations whose finesse finished (ours; 0: as
+    /// `--revoke-levels`).
+    #[arg(long, default_value_t = 0)]
+    pub revoke_levels_finished: u32,
+    /// Abandon a saturated operation early once the world distance from its subject to its
+    /// target has not reached a new minimum for this many steps (ours; 0: off, hold the full
+    /// 20 steps).
+    #[arg(long, default_value_t = 0)]
+    pub hold_progress: u32,
+    /// Visit out-most red vertices with the fewest out-most red neighbours first (ours; more
+    /// pulls start side by side; default: by index).
+    #[arg(long)]
+    pub pull_fewest_neighbours_first: bool,
     /// The loop's time integrator: `baraff-witkin` (the default: resolves the most),
     /// `projective` (projective dynamics: about 1.7x the steps per second, resolves fewer
     /// tangles; BENCHMARKS.md) or `adaptive` (projective dynamics, Baraff & Witkin from the
@@ -176,6 +195,12 @@ impl Args {
         p.slit_stall = self.slit_stall;
         p.cha_ko.revoke_levels_per_step = self.revoke_levels;
         p.sim.zone_motion.soft_levels = self.zone_soft_levels;
+        p.cha_ko.revoke_levels_when_clean = self.revoke_levels_when_clean;
+        p.cha_ko.revoke_levels_finished = self.revoke_levels_finished;
+        p.cha_ko.hold_progress_steps = self.hold_progress;
+        if self.pull_fewest_neighbours_first {
+            p.cha_ko.pull_order = untangle::methods::cha_ko::PullOrder::FewestOutmostNeighbours;
+        }
         p.analysis.bli_regions_red = !self.no_bli_regions;
         match self.integrator {
             LoopIntegrator::BaraffWitkin => p.sim.integrator = Integrator::BaraffWitkin,

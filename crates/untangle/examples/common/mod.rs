@@ -278,3 +278,32 @@ pub fn integrator_use(r: &untangle::methods::cha_ko::Resolver) -> String {
     let switches = h.iter().filter(|s| s.integrator_switch.is_some()).count();
     format!("{bw} / {switches}")
 }
+
+/// Scheduling options of the Cha & Ko loop from the environment (`methods::cha_ko::Params`,
+/// all ours): `CHAKO_REVOKE_CLEAN` (levels revoked per step once nothing intersects,
+/// `revoke_levels_when_clean`: default 200, i.e. at once; 0: one per step as elsewhere; the
+/// others are off by default), `CHAKO_REVOKE_FINISHED` (levels per step for
+/// finished finesses, `revoke_levels_finished`), `CHAKO_HOLD_PROGRESS` (abandon a saturated
+/// operation that stopped closing in for this many steps, `hold_progress_steps`),
+/// `CHAKO_PULL_ORDER` (0: by index, 1: fewest out-most red neighbours first). Unset variables
+/// keep `p`'s values.
+pub fn schedule_params(p: &mut untangle::methods::cha_ko::Params) {
+    use untangle::methods::cha_ko::PullOrder;
+    let env = |k: &str| {
+        std::env::var(k)
+            .ok()
+            .map(|s| s.parse::<u32>().unwrap_or_else(|_| panic!("{k}: a number")))
+    };
+    if let Some(v) = env("CHAKO_REVOKE_CLEAN") {
+        p.revoke_levels_when_clean = v;
+    }
+    if let Some(v) = env("CHAKO_REVOKE_FINISHED") {
+        p.revoke_levels_finished = v;
+    }
+    if let Some(v) = env("CHAKO_HOLD_PROGRESS") {
+        p.hold_progress_steps = v;
+    }
+    if let Some(v) = env("CHAKO_PULL_ORDER") {
+        p.pull_order = [PullOrder::Index, PullOrder::FewestOutmostNeighbours][v as usize];
+    }
+}

@@ -41,7 +41,7 @@ pub mod trial;
 
 pub use adaptive::{AdaptiveIntegrator, IntegratorSchedule, IntegratorSwitch};
 pub use fallback::Fallback;
-pub use params::Params;
+pub use params::{Params, PullOrder};
 pub use policy::{MchPolicy, MixedEdges, PairColour};
 pub use report::{EndReason, FinesseRecord, FinesseStats, Stall, StallReason, UvUpdateReport};
 pub use resolve::{LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver};
@@ -69,6 +69,9 @@ pub struct ChaKo {
     eps_rg: f64,
     moved: Vec<u64>,
     tabu: std::collections::BTreeMap<schedule::TabuKey, u64>,
+    /// Saturated operations under [`Params::hold_progress_steps`]: the shortest world distance
+    /// from subject to target seen while held, and the step it was seen.
+    closing: std::collections::BTreeMap<u32, (f64, u64)>,
     /// Loop vertices of the step's intersection paths (sorted): a red* triangle is not shrunk
     /// toward one (see [`schedule`]).
     loop_vertices: Vec<u32>,
@@ -99,6 +102,7 @@ impl ChaKo {
             eps_rg,
             moved: vec![0; n],
             tabu: Default::default(),
+            closing: Default::default(),
             loop_vertices: Vec::new(),
             cut_edge: Vec::new(),
             prev_red: None,

@@ -33,8 +33,26 @@ pub struct Params {
     /// target pair or red* triangle barred for twice as many steps so that another target or
     /// the triangle across the red edge gets a turn). 0 = hold for ever.
     pub hold_steps: u32,
+    /// Progress test for held operations (ours; 0 = off): a saturated operation is abandoned
+    /// early, before `hold_steps`, once the world distance from its subjects to its target
+    /// (pull: the subject vertex; shrink: the midpoint of the red edge) has not reached a new
+    /// minimum (by 0.1 %) for this many steps. An operation still closing in keeps its full hold.
+    pub hold_progress_steps: u32,
     /// Levels undone per step by a revoke (Sec. 5.1.1 scales by `1/gamma`, i.e. one level).
     pub revoke_levels_per_step: u32,
+    /// Levels undone per step while no garment triangle is red, i.e. the analysed state is free
+    /// of intersections (ours; 0: as [`Params::revoke_levels_per_step`]; default 200, at least
+    /// any level cap: everything at once). Once clean, Alg. 2 only revokes, and at one level per
+    /// step the loop's tail lasts as many steps as the deepest remaining operation has levels.
+    /// With an all-green colouring m-CCH is full collision handling, so undoing the edits at
+    /// once cannot bring an intersection back (docs/cha-ko.md, "Where the steps go").
+    pub revoke_levels_when_clean: u32,
+    /// Levels undone per step for operations whose finesse *finished* (ours; 0: as
+    /// [`Params::revoke_levels_per_step`]); superseded and abandoned ones keep that rate.
+    pub revoke_levels_finished: u32,
+    /// Order of the out-most red vertices in Alg. 2's second loop (ours; the paper sorts
+    /// nothing; see [`PullOrder`]).
+    pub pull_order: PullOrder,
     /// Use the fallbacks (kernel target, shortened anchors) when no fan passes the triangle
     /// inversion test (Sec. 6.1; the paper's Appendix C is not available). When off, such
     /// subjects are reported as stalled at once.
@@ -80,6 +98,20 @@ pub struct Params {
     pub trial_release_after: u32,
 }
 
+/// In which order Alg. 2's second loop visits the out-most red vertices (lines 6-9). A pull
+/// blocks every later candidate whose fan contains its subject (Case 1), so the order decides how
+/// many pulls run side by side.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PullOrder {
+    /// By vertex index (deterministic; the default).
+    #[default]
+    Index,
+    /// Fewest out-most red neighbours first, ties by index: a greedy maximal independent set
+    /// that lets more non-adjacent pulls start in one step.
+    FewestOutmostNeighbours,
+}
+
 impl Default for Params {
     fn default() -> Self {
         Params {
@@ -90,7 +122,11 @@ impl Default for Params {
             eps_rg: None,
             max_level: 15,
             hold_steps: 20,
+            hold_progress_steps: 0,
             revoke_levels_per_step: 1,
+            revoke_levels_when_clean: 200,
+            revoke_levels_finished: 0,
+            pull_order: PullOrder::Index,
             fallback: true,
             persistent_green: false,
             loop_target_last_resort: true,

@@ -108,6 +108,7 @@ impl ChaKo {
             step,
             moved,
             tabu,
+            closing,
             loop_vertices,
             last_resort_ops,
             cut_edge,
@@ -134,12 +135,26 @@ impl ChaKo {
         // Operations held saturated for `hold_steps` are given up; their pair / triangle is
         // barred for twice as long so that an alternative gets a turn.
         tabu.retain(|_, until| *until > step);
+        closing.retain(|id, _| state.ops.contains_key(id));
         if params.hold_steps > 0 {
             for op in state.ops.values() {
                 let rec = &mut log[op.id as usize];
-                let held = rec
+                let mut held = rec
                     .saturated_step
                     .is_some_and(|s| step >= s + params.hold_steps as u64);
+                if let (Some(pos), Some(_), None, k @ 1..) = (
+                    positions,
+                    rec.saturated_step,
+                    rec.end,
+                    params.hold_progress_steps,
+                ) {
+                    let d = subject_target_distance(op, pos);
+                    let best = closing.entry(op.id).or_insert((d, step));
+                    if d < best.0 * (1.0 - 1e-3) {
+                        *best = (d, step);
+                    }
+                    held |= step >= best.1 + k as u64;
+                }
                 if rec.end.is_none() && held {
                     rec.end = Some(EndReason::Abandoned);
                     rec.end_step = Some(step);
@@ -271,10 +286,8 @@ impl ChaKo {
                     .edge_between(x, w)
                     .is_some_and(|e| cut_edge[e as usize])
         };
-        for &x in &col.outmost_red {
-            if x >= nv {
-                continue;
-            }
+        let order = pull_order(topo, col, params.pull_order, nv);
+        for x in order {
             if moved[x as usize] == stamp {
                 rep.blocked_subject += 1;
                 continue;
@@ -399,7 +412,10 @@ impl ChaKo {
 
         // Lines 10-13: revoke what is no longer warranted.
         let ids: Vec<u32> = state.ops.keys().copied().collect();
-        let per_step = params.revoke_levels_per_step;
+        // Every intersecting triangle is red (Sec. 3), so an all-green garment is clean.
+        let clean = !col.red_triangle[..nt as usize].iter().any(|&r| r);
+        let base_rate = params.revoke_levels_per_step;
+        let or_base = |k: u32| if k == 0 { base_rate } else { k };
         for id in ids {
             if touched[id as usize] {
                 continue;
@@ -428,6 +444,13 @@ impl ChaKo {
                 });
                 rec.end_step = Some(step);
             }
+            let per_step = if clean {
+                or_base(params.revoke_levels_when_clean)
+            } else if rec.end == Some(EndReason::Finished) {
+                or_base(params.revoke_levels_finished)
+            } else {
+                base_rate
+            };
             rep.revoked_levels += op.level.min(per_step) as usize;
             if state.revoke(id, per_step) {
                 rep.restored += 1;
@@ -473,6 +496,41 @@ impl ChaKo {
             rep.pulls_started + rep.shrinks_started + continued + rep.revoked_levels > 0;
         rep
     }
+}
+
+/// The garment's out-most red vertices in the order of [`super::PullOrder`].
+fn pull_order(
+    topo: &crate::mesh::Topology,
+    col: &Coloring,
+    order: super::PullOrder,
+    nv: u32,
+) -> Vec<u32> {
+    let mut xs: Vec<u32> = col
+        .outmost_red
+        .iter()
+        .copied()
+        .filter(|&x| x < nv)
+        .collect();
+    if order == super::PullOrder::FewestOutmostNeighbours {
+        let outmost = |w: u32| col.outmost_red.binary_search(&w).is_ok();
+        xs.sort_by_key(|&x| {
+            let n = topo
+                .vertex_neighbors
+                .row(x as usize)
+                .iter()
+                .filter(|&&w| outmost(w))
+                .count();
+            (n, x)
+        });
+    }
+    xs
+}
+
+/// World distance from an operation's subject (pull) or the midpoint of its two subjects
+/// (shrink) to its target (see [`super::Params::hold_progress_steps`]).
+fn subject_target_distance(op: &Op, pos: &[Vec3]) -> f64 {
+    let s = op.subjects.iter().map(|&v| pos[v as usize]).sum::<Vec3>() / op.subjects.len() as f64;
+    (s - pos[op.target as usize]).norm()
 }
 
 /// A recently abandoned operation, barred for a while.
