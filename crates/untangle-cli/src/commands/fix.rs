@@ -135,8 +135,9 @@ pub struct Args {
     /// (docs/cha-ko.md, "The simulator inside the loop").
     #[arg(long, default_value_t = ResolveParams::default().sim.zone_motion.soft_levels)]
     pub zone_soft_levels: u32,
-    /// Levels revoked per step once nothing intersects (ours; default 200: everything at once;
-    /// 0: as `--revoke-levels`). The loop's tail after the first clean step only revokes; m-CCH
+    /// Levels revoked per step once nothing intersects (ours; 0, the default: as
+    /// `--revoke-levels`; 200: everything at once, one step after the first clean step, but the
+    /// output is left about twice as stretched). The loop's tail after the first clean step only revokes; m-CCH
     /// with an all-green colouring is full collision handling, so the cloth stays clean
     /// (docs/cha-ko.md, "Where the steps go").
     #[arg(long, default_value_t = untangle::methods::cha_ko::Params::default().revoke_levels_when_clean)]

@@ -281,7 +281,7 @@ pub fn integrator_use(r: &untangle::methods::cha_ko::Resolver) -> String {
 
 /// Scheduling options of the Cha & Ko loop from the environment (`methods::cha_ko::Params`,
 /// all ours): `CHAKO_REVOKE_CLEAN` (levels revoked per step once nothing intersects,
-/// `revoke_levels_when_clean`: default 200, i.e. at once; 0: one per step as elsewhere; the
+/// `revoke_levels_when_clean`: default 0, one per step as elsewhere; 200: at once; the
 /// others are off by default), `CHAKO_REVOKE_FINISHED` (levels per step for
 /// finished finesses, `revoke_levels_finished`), `CHAKO_HOLD_PROGRESS` (abandon a saturated
 /// operation that stopped closing in for this many steps, `hold_progress_steps`),

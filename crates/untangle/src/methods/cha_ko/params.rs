@@ -41,8 +41,9 @@ pub struct Params {
     /// Levels undone per step by a revoke (Sec. 5.1.1 scales by `1/gamma`, i.e. one level).
     pub revoke_levels_per_step: u32,
     /// Levels undone per step while no garment triangle is red, i.e. the analysed state is free
-    /// of intersections (ours; 0: as [`Params::revoke_levels_per_step`]; default 200, at least
-    /// any level cap: everything at once). Once clean, Alg. 2 only revokes, and at one level per
+    /// of intersections (ours; 0, the default: as [`Params::revoke_levels_per_step`]; 200, at
+    /// least any level cap: everything at once, which ends the loop one step after the first
+    /// clean step but leaves the cloth about twice as stretched at the end). Once clean, Alg. 2 only revokes, and at one level per
     /// step the loop's tail lasts as many steps as the deepest remaining operation has levels.
     /// With an all-green colouring m-CCH is full collision handling, so undoing the edits at
     /// once cannot bring an intersection back (docs/cha-ko.md, "Where the steps go").
@@ -124,7 +125,7 @@ impl Default for Params {
             hold_steps: 20,
             hold_progress_steps: 0,
             revoke_levels_per_step: 1,
-            revoke_levels_when_clean: 200,
+            revoke_levels_when_clean: 0,
             revoke_levels_finished: 0,
             pull_order: PullOrder::Index,
             fallback: true,
