@@ -763,14 +763,23 @@ fn clean_colouring_revokes_at_the_clean_rate() {
     };
     let (g, mut ck) = pulled(one, a, far, 4);
     assert_eq!(revoke_trace(&mut ck, &green(&g), a), vec![4, 3, 2, 1]);
-    // Default: an all-green garment (no red triangle: nothing intersects) is restored in one
-    // step, exactly.
-    let (g, mut ck) = pulled(Params::default(), a, far, 4);
+    assert_eq!(
+        Params::default().revoke_levels_when_clean,
+        0,
+        "the paper's rate by default"
+    );
+    // Everything at once (200, above any level cap): an all-green garment (no red triangle:
+    // nothing intersects) is restored in one step, exactly.
+    let at_once = Params {
+        revoke_levels_when_clean: 200,
+        ..Params::default()
+    };
+    let (g, mut ck) = pulled(at_once.clone(), a, far, 4);
     assert_eq!(revoke_trace(&mut ck, &green(&g), a), vec![4]);
     assert!(ck.is_restored());
     assert_eq!(ck.current_uv(), ck.original_uv());
     // Not clean (`far` stays red): `a`'s finished pull is revoked one level per step.
-    let (g, mut ck) = pulled(Params::default(), a, far, 4);
+    let (g, mut ck) = pulled(at_once, a, far, 4);
     let col = coloring(&g, &[far], &[], &[]);
     assert_eq!(revoke_trace(&mut ck, &col, a), vec![4, 3, 2, 1]);
     // A clean rate of 2.
