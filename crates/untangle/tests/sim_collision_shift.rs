@@ -9,15 +9,20 @@ use untangle::mesh::Garment;
 use untangle::scenes::handkerchief;
 use untangle::sim::{Integrator, SimParams, Simulator, UniformThickness};
 
-/// Two parallel sheets 1 cm apart, the upper one thrown at the lower one.
-#[test]
-fn collision_shift_is_the_distance_to_the_collision_free_step() {
+/// Two parallel 6 x 6 sheets 1 cm apart as one garment, and the lower sheet's vertex count
+/// (its vertices come first).
+fn two_sheets() -> (Garment, usize) {
     let below = handkerchief("a", 6, 6, 0.3, 0.3, |p| Vec3::new(p.x, 0.0, p.y));
     let above = handkerchief("b", 6, 6, 0.3, 0.3, |p| Vec3::new(p.x, 0.01, p.y));
     let merged = AnalysisMesh::merge_cloth(&[below.clone(), above]).unwrap();
-    let g = Garment::new(merged).unwrap();
+    (Garment::new(merged).unwrap(), below.positions.len())
+}
+
+/// Two parallel sheets 1 cm apart, the upper one thrown at the lower one.
+#[test]
+fn collision_shift_is_the_distance_to_the_collision_free_step() {
+    let (g, lower) = two_sheets();
     let nv = g.mesh.positions.len();
-    let lower = below.positions.len();
     // The upper sheet moves down 2 cm per step: it would pass through the lower one.
     let v: Vec<Vec3> = (0..nv)
         .map(|i| {
@@ -87,12 +92,8 @@ fn collision_shift_is_the_distance_to_the_collision_free_step() {
 /// before the first step and with collisions off.
 #[test]
 fn solved_velocities_give_the_collision_free_end_positions() {
-    let below = handkerchief("a", 6, 6, 0.3, 0.3, |p| Vec3::new(p.x, 0.0, p.y));
-    let above = handkerchief("b", 6, 6, 0.3, 0.3, |p| Vec3::new(p.x, 0.01, p.y));
-    let merged = AnalysisMesh::merge_cloth(&[below.clone(), above]).unwrap();
-    let g = Garment::new(merged).unwrap();
+    let (g, lower) = two_sheets();
     let nv = g.mesh.positions.len();
-    let lower = below.positions.len();
     let v: Vec<Vec3> = (0..nv)
         .map(|i| Vec3::new(0.0, if i < lower { 0.0 } else { -1.0 }, 0.0))
         .collect();

@@ -245,6 +245,54 @@ impl Bvh {
         &self.order
     }
 
+    /// The overlapping pairs within leaf `n` (slot indices), in slot order.
+    #[inline(always)]
+    pub(super) fn leaf_self<T, F: Fn(u32, u32, &mut Vec<T>)>(
+        &self,
+        n: &Node,
+        visit: &F,
+        out: &mut Vec<T>,
+    ) {
+        let s = n.start as usize;
+        let slots = &self.slot_aabbs[s..s + n.count as usize];
+        for (di, bi) in slots.iter().enumerate() {
+            for (dj, bj) in slots[di + 1..].iter().enumerate() {
+                if overlap(bi, bj) {
+                    visit((s + di) as u32, (s + di + 1 + dj) as u32, out);
+                }
+            }
+        }
+    }
+
+    /// The overlapping pairs between leaf `na` of `self` and leaf `nb` of `other` (slot
+    /// indices), in slot order of `na`, then of `nb`.
+    #[inline(always)]
+    pub(super) fn leaf_cross<T, F: Fn(u32, u32, &mut Vec<T>)>(
+        &self,
+        other: &Bvh,
+        na: &Node,
+        nb: &Node,
+        visit: &F,
+        out: &mut Vec<T>,
+    ) {
+        let (sa, sb) = (na.start as usize, nb.start as usize);
+        let boxes_b = &other.slot_aabbs[sb..sb + nb.count as usize];
+        for (di, bi) in self.slot_aabbs[sa..sa + na.count as usize]
+            .iter()
+            .enumerate()
+        {
+            // A box apart from the union of `b`'s boxes overlaps none of them.
+            if !overlap(bi, &nb.aabb) {
+                continue;
+            }
+            for (dj, bj) in boxes_b.iter().enumerate() {
+                if overlap(bi, bj) {
+                    visit((sa + di) as u32, (sb + dj) as u32, out);
+                }
+            }
+        }
+    }
+
     fn self_rec<
         T: Send,
         F: Fn(u32, u32, &mut Vec<T>) + Sync,
@@ -262,15 +310,7 @@ impl Bvh {
             return;
         }
         if n.is_leaf() {
-            let s = n.start as usize;
-            let slots = &self.slot_aabbs[s..s + n.count as usize];
-            for (di, bi) in slots.iter().enumerate() {
-                for (dj, bj) in slots[di + 1..].iter().enumerate() {
-                    if overlap(bi, bj) {
-                        visit((s + di) as u32, (s + di + 1 + dj) as u32, out);
-                    }
-                }
-            }
+            self.leaf_self(n, visit, out);
             return;
         }
         // Pairs within the left subtree, within the right one, then between them (the order
@@ -355,22 +395,7 @@ impl Bvh {
     ) {
         let (na, nb) = (&self.nodes[a], &other.nodes[b]);
         if na.is_leaf() && nb.is_leaf() {
-            let (sa, sb) = (na.start as usize, nb.start as usize);
-            let boxes_b = &other.slot_aabbs[sb..sb + nb.count as usize];
-            for (di, bi) in self.slot_aabbs[sa..sa + na.count as usize]
-                .iter()
-                .enumerate()
-            {
-                // A box apart from the union of `b`'s boxes overlaps none of them.
-                if !overlap(bi, &nb.aabb) {
-                    continue;
-                }
-                for (dj, bj) in boxes_b.iter().enumerate() {
-                    if overlap(bi, bj) {
-                        visit((sa + di) as u32, (sb + dj) as u32, out);
-                    }
-                }
-            }
+            self.leaf_cross(other, na, nb, visit, out);
             return;
         }
         let split_a = !na.is_leaf() && (nb.is_leaf() || na.half_area >= nb.half_area);

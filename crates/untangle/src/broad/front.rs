@@ -18,7 +18,7 @@
 
 use rayon::prelude::*;
 
-use super::bvh::{overlap, par_cutoff, Bvh, Node};
+use super::bvh::{par_cutoff, Bvh};
 
 /// Entries per parallel task when a traversal starts from a front.
 const CHUNK: usize = 512;
@@ -134,20 +134,6 @@ impl Bvh {
         acc.out
     }
 
-    /// The pairs within leaf `n` (slot indices).
-    #[inline]
-    fn leaf_self<T, F: Fn(u32, u32, &mut Vec<T>)>(&self, n: &Node, visit: &F, out: &mut Vec<T>) {
-        let s = n.start as usize;
-        let slots = &self.slot_aabbs[s..s + n.count as usize];
-        for (di, bi) in slots.iter().enumerate() {
-            for (dj, bj) in slots[di + 1..].iter().enumerate() {
-                if overlap(bi, bj) {
-                    visit((s + di) as u32, (s + di + 1 + dj) as u32, out);
-                }
-            }
-        }
-    }
-
     /// Self-traversal of the subtree at `a` from its root, recording the front; halves of at
     /// least `cutoff` primitives in parallel (the output is concatenated in a fixed order).
     fn self_full<T: Send, F: Fn(u32, u32, &mut Vec<T>) + Sync>(
@@ -209,22 +195,7 @@ impl Bvh {
             return;
         }
         if na.is_leaf() && nb.is_leaf() {
-            let (sa, sb) = (na.start as usize, nb.start as usize);
-            let boxes_b = &other.slot_aabbs[sb..sb + nb.count as usize];
-            for (di, bi) in self.slot_aabbs[sa..sa + na.count as usize]
-                .iter()
-                .enumerate()
-            {
-                // A box apart from the union of `b`'s boxes overlaps none of them.
-                if !overlap(bi, &nb.aabb) {
-                    continue;
-                }
-                for (dj, bj) in boxes_b.iter().enumerate() {
-                    if overlap(bi, bj) {
-                        visit((sa + di) as u32, (sb + dj) as u32, &mut acc.out);
-                    }
-                }
-            }
+            self.leaf_cross(other, na, nb, visit, &mut acc.out);
             acc.front.push((a as u32, b as u32));
             return;
         }

@@ -934,56 +934,32 @@ impl Projective {
             };
         }
         if let Some(lr) = problem.low_rank {
-            if SINGLE_PRECISION_INCREMENTS {
-                // As the exact step: the residual `rhs - A x` (the penalties' part of `A x`
-                // first, a few nodes) per free row in double precision, written into the
-                // solver's buffer, one single-precision solve, then the low-rank correction.
-                // The correction's columns `B^-1 w` are double precision; the increment's
-                // rounding stays relative to the increment, as for the exact step, so the
-                // fixed point is unchanged.
-                let (pen, b) = (&mut work.ax, &mut work.b);
-                pen.clear();
-                pen.resize(n, Vec3::zeros());
-                lr.add_penalties(x, pen);
-                b.clear();
-                b.resize(n, Vec3::zeros());
-                let (p, pen, xs) = (&self.pattern, &*pen, &*x);
-                factor.solve_increment_with(
-                    |i| {
-                        if problem.filter[i] == Filter::Fixed {
-                            return Vec3::zeros();
-                        }
-                        let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
-                        let ax = row_times(&p.cols[row.clone()], &problem.values[row], xs);
-                        rhs_const[i] + self.gather(targets, i) - ax - pen[i]
-                    },
-                    b,
-                );
-                lr.correct(x, problem.targets, b, force);
-                for (xi, d) in x.iter_mut().zip(b.iter()) {
-                    *xi += d;
-                }
-                return PcgResult {
-                    iterations: 1,
-                    relative_residual: 0.0,
-                    converged: true,
-                };
-            }
-            // r = rhs - A x at the free nodes, dx = B^-1 r corrected for the contact terms.
-            let (ax, b) = (&mut work.ax, &mut work.b);
-            ax.clear();
-            ax.resize(n, Vec3::zeros());
-            self.mul_values(problem.values, x, ax);
-            lr.add_penalties(x, ax);
+            // r = rhs - A x at the free nodes (the penalties' part of `A x` first, a few
+            // nodes), evaluated per row in double precision while it is written into the
+            // solver's buffer; dx = B^-1 r, then the low-rank correction for the contact terms.
+            // With single-precision increments (as the exact step) the correction's columns
+            // `B^-1 w` stay double precision; the increment's rounding is relative to the
+            // increment, so the fixed point is unchanged.
+            let (pen, b) = (&mut work.ax, &mut work.b);
+            pen.clear();
+            pen.resize(n, Vec3::zeros());
+            lr.add_penalties(x, pen);
             b.clear();
-            b.extend((0..n).map(|i| {
+            b.resize(n, Vec3::zeros());
+            let (p, pen, xs) = (&self.pattern, &*pen, &*x);
+            let residual = |i: usize| {
                 if problem.filter[i] == Filter::Fixed {
-                    Vec3::zeros()
-                } else {
-                    rhs_const[i] + self.gather(targets, i) - ax[i]
+                    return Vec3::zeros();
                 }
-            }));
-            factor.solve3(b);
+                let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
+                let ax = row_times(&p.cols[row.clone()], &problem.values[row], xs);
+                rhs_const[i] + self.gather(targets, i) - ax - pen[i]
+            };
+            if SINGLE_PRECISION_INCREMENTS {
+                factor.solve_increment_with(residual, b);
+            } else {
+                factor.solve_with(residual, b);
+            }
             lr.correct(x, problem.targets, b, force);
             for (xi, d) in x.iter_mut().zip(b.iter()) {
                 *xi += d;
