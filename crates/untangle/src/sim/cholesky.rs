@@ -1676,6 +1676,36 @@ impl ScalarCholesky {
         rayon::join(|| solve(a), || solve(b));
     }
 
+    /// [`ScalarCholesky::solve_many`] with the single-precision factor of
+    /// [`ScalarCholesky::solve_increment_with`], three columns per substitution (one per
+    /// coordinate lane): for columns that only shape an iteration whose residual is evaluated
+    /// in double precision (the low-rank contact correction), so their rounding changes the
+    /// convergence rate, not the fixed point.
+    pub fn solve_many_single(&self, cols: &mut [f64]) {
+        let n = self.n;
+        if !self.factored || n == 0 {
+            return;
+        }
+        let k = cols.len() / n;
+        let mut out = vec![Vec3::zeros(); n];
+        for c0 in (0..k).step_by(3) {
+            let m = (k - c0).min(3);
+            {
+                let cs = &cols[c0 * n..(c0 + m) * n];
+                let lane = |j: usize, i: usize| if j < m { cs[j * n + i] } else { 0.0 };
+                self.solve_increment_with(
+                    |i| Vec3::new(lane(0, i), lane(1, i), lane(2, i)),
+                    &mut out,
+                );
+            }
+            for j in 0..m {
+                for (c, o) in cols[(c0 + j) * n..(c0 + j + 1) * n].iter_mut().zip(&out) {
+                    *c = o[j];
+                }
+            }
+        }
+    }
+
     /// The preconditioner `out = S (B^-1 (x) I3) S r`; returns `r . out`. Without a factor,
     /// `out = S r`.
     pub fn apply(&self, r: &[Vec3], filter: &[Filter], out: &mut [Vec3]) -> f64 {

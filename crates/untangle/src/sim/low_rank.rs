@@ -62,14 +62,18 @@ pub struct LowRank {
 
 impl LowRank {
     /// Factors the correction of `terms` over `groups` for the factored matrix `factor` (the
-    /// nodes with `fixed[i]` eliminated). `None` if there are more than [`MAX_GROUPS`] groups,
-    /// no factor, or the capacitance matrix is not positive definite (e.g. two identical
-    /// constraints).
+    /// nodes with `fixed[i]` eliminated); with `single`, the columns `B^-1 w` by the factor's
+    /// single-precision substitution ([`ScalarCholesky::solve_many_single`]: for a global step
+    /// that solves its increments in single precision and recomputes its residual in double,
+    /// so the rounding only slows the iteration), else in double precision. `None` if there
+    /// are more than [`MAX_GROUPS`] groups, no factor, or the capacitance matrix is not
+    /// positive definite (e.g. two identical constraints).
     pub fn new(
         factor: &ScalarCholesky,
         fixed: &[bool],
         groups: Vec<Group>,
         terms: Vec<Term>,
+        single: bool,
     ) -> Option<LowRank> {
         let n = fixed.len();
         if groups.len() > MAX_GROUPS || !factor.is_factored() {
@@ -84,7 +88,11 @@ impl LowRank {
                 }
             }
         }
-        factor.solve_many(&mut columns);
+        if single {
+            factor.solve_many_single(&mut columns);
+        } else {
+            factor.solve_many(&mut columns);
+        }
         // w_a^T B^-1 w_b per pair of groups, then per pair of terms times d_r . d_s.
         let wg = |a: &Group, b: usize| -> f64 {
             let col = &columns[b * n..(b + 1) * n];
@@ -302,7 +310,7 @@ mod tests {
                     }
                 }
             }
-            let lr = LowRank::new(&chol, &fixed, groups.clone(), terms.clone()).unwrap();
+            let lr = LowRank::new(&chol, &fixed, groups.clone(), terms.clone(), false).unwrap();
             let r: Vec<Vec3> = (0..n)
                 .map(|i| if fixed[i] { Vec3::zeros() } else { unit(&mut rng) * rng.random_range(0.0..2.0) })
                 .collect();
@@ -365,6 +373,18 @@ mod tests {
                         prop_assert!((force[i][d] - f).abs() <= 1e-7 * scale * (1.0 + h.amax()),
                             "force[{}][{}] = {} vs {}", i, d, force[i][d], f);
                     }
+                }
+            }
+            // The columns by the single-precision substitution: the same solution to the
+            // rounding of single precision (the global step iterates that away).
+            let lr32 = LowRank::new(&chol, &fixed, groups.clone(), terms.clone(), true).unwrap();
+            let mut dx32 = r.clone();
+            chol.solve3(&mut dx32);
+            lr32.correct(&x, &targets, &mut dx32, None);
+            for i in 0..n {
+                for d in 0..3 {
+                    prop_assert!((dx32[i][d] - want[3 * i + d]).abs() <= 1e-5 * scale,
+                        "single: dx[{}][{}] = {} vs {}", i, d, dx32[i][d], want[3 * i + d]);
                 }
             }
         }

@@ -1672,7 +1672,7 @@ mod tests {
                     }
                 }
             }
-            let lr = LowRank::new(&exact, &s.fixed, groups, lr_terms);
+            let lr = LowRank::new(&exact, &s.fixed, groups, lr_terms, true);
             prop_assert!(lr.is_some());
             let direct = StepProblem { contacts: None, low_rank: lr.as_ref(), ..problem };
             let mut x: Vec<Vec3> = (0..n).map(|i| match filter[i] {

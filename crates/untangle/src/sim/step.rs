@@ -1180,7 +1180,7 @@ impl Simulator {
                         let f = pd.factor.as_ref()?;
                         let (groups, lr_terms) =
                             low_rank_terms(&springs, &spring_k, &contacts, &friction);
-                        low_rank::LowRank::new(f, &self.pinned, groups, lr_terms)
+                        low_rank::LowRank::new(f, &self.pinned, groups, lr_terms, true)
                     })
                     .flatten();
                 // Otherwise the terms next to the factored matrix, for CG's products.
