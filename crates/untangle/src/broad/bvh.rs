@@ -398,14 +398,8 @@ impl Bvh {
             self.leaf_cross(other, na, nb, visit, out);
             return;
         }
-        let split_a = !na.is_leaf() && (nb.is_leaf() || na.half_area >= nb.half_area);
         let parallel = na.size + nb.size >= cutoff;
-        // The two (node of self, node of other) pairs to descend into, in output order.
-        let (first, second) = if split_a {
-            ((na.start as usize, b), (na.right as usize, b))
-        } else {
-            ((a, nb.start as usize), (a, nb.right as usize))
-        };
+        let (first, second) = cross_children(na, nb, a, b);
         let hits = |(x, y): (usize, usize)| self.nodes[x].aabb.overlaps(&other.nodes[y].aabb);
         let (h1, h2) = (hits(first), hits(second));
         if parallel && h1 && h2 {
@@ -527,6 +521,25 @@ fn refit_dirty(nodes: &mut [Node], offset: usize, slots: &[Aabb], dirty: &[u32])
         bl.union(&br)
     };
     set_box(&mut nodes[0], b)
+}
+
+/// The two node pairs a cross-traversal of the overlapping nodes `a` (node `na` of the first
+/// tree) and `b` (`nb` of the second), not both leaves, descends into, in output order: the
+/// larger node by half area is split (the first tree's on ties, the inner one if the other is a
+/// leaf), its first child before its second. Shared by [`Bvh::cross_pairs`] and the front
+/// traversal (`broad::front`), whose fronts rely on the same order.
+#[inline(always)]
+pub(super) fn cross_children(
+    na: &Node,
+    nb: &Node,
+    a: usize,
+    b: usize,
+) -> ((usize, usize), (usize, usize)) {
+    if !na.is_leaf() && (nb.is_leaf() || na.half_area >= nb.half_area) {
+        ((na.start as usize, b), (na.right as usize, b))
+    } else {
+        ((a, nb.start as usize), (a, nb.right as usize))
+    }
 }
 
 /// [`Aabb::overlaps`] without short-circuiting (the six comparisons are cheaper than the

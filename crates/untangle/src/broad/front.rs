@@ -18,7 +18,7 @@
 
 use rayon::prelude::*;
 
-use super::bvh::{par_cutoff, Bvh};
+use super::bvh::{cross_children, par_cutoff, Bvh};
 
 /// Entries per parallel task when a traversal starts from a front.
 const CHUNK: usize = 512;
@@ -199,12 +199,7 @@ impl Bvh {
             acc.front.push((a as u32, b as u32));
             return;
         }
-        let split_a = !na.is_leaf() && (nb.is_leaf() || na.half_area >= nb.half_area);
-        let (first, second) = if split_a {
-            ((na.start as usize, b), (na.right as usize, b))
-        } else {
-            ((a, nb.start as usize), (a, nb.right as usize))
-        };
+        let (first, second) = cross_children(na, nb, a, b);
         if na.size + nb.size >= cutoff {
             let ((), o2) = rayon::join(
                 || self.cross_entry(other, first.0, first.1, cutoff, visit, acc),
