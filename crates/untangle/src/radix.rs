@@ -60,6 +60,7 @@ pub fn sort_by_bucket_then_key<T: Copy + Default>(
 ///
 /// # Safety
 /// `fill` must initialise every one of the `n` elements of the slice it is given.
+#[inline(always)]
 pub(crate) unsafe fn written_once<T: Copy>(
     n: usize,
     fill: impl FnOnce(&mut [std::mem::MaybeUninit<T>]),

@@ -404,26 +404,44 @@ fn obstacles_are_analysed_against_cloth_only() {
 
 #[test]
 fn report_is_identical_for_one_and_two_threads() {
-    let s = scenes::exploded::exploded(3, 14);
-    let (am, pos) = AnalysisMesh::single(&s.meshes[0]).unwrap();
-    let run = |n: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .unwrap();
-        pool.install(|| {
-            let a = analyze(&am, &pos).unwrap();
-            let mut r = Report::new(&am, &pos, &a);
-            r.timing_ms = Default::default();
-            (r, a.coloring, a.crossings)
-        })
-    };
-    let (r1, c1, x1) = run(1);
-    let (r2, c2, x2) = run(2);
-    assert_eq!(r1, r2);
-    assert_eq!(c1, c2);
-    assert_eq!(x1, x2);
-    assert!(r1.intersecting_triangle_pairs > 100);
+    // Dense enough that two threads take the parallel paths of every phase (the kernel over
+    // the listed pairs, the linking in two halves, the paths of two ranges of chains).
+    for (seed, n) in [(3, 14), (0, 20)] {
+        let s = scenes::exploded::exploded(seed, n);
+        let (am, pos) = AnalysisMesh::single(&s.meshes[0]).unwrap();
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let a = analyze(&am, &pos).unwrap();
+                let mut r = Report::new(&am, &pos, &a);
+                r.timing_ms = Default::default();
+                let rest = format!(
+                    "{:?}",
+                    (
+                        &a.segments,
+                        &a.segments_of_crossing,
+                        &a.paths,
+                        &a.tanglements,
+                        &a.regions
+                    )
+                );
+                (r, a.coloring, a.crossings, rest)
+            })
+        };
+        let (r1, c1, x1, rest1) = run(1);
+        let (r2, c2, x2, rest2) = run(2);
+        assert_eq!(r1, r2);
+        assert_eq!(c1, c2);
+        assert_eq!(x1, x2);
+        assert!(
+            rest1 == rest2,
+            "segments, paths, tanglements, regions differ"
+        );
+        assert!(r1.intersecting_triangle_pairs > 2000);
+    }
 }
 
 /// The components of the mesh's vertex graph without the `removed` vertices and the `cut` edges

@@ -22,6 +22,7 @@ use super::crossings::Crossing;
 use super::input::AnalysisMesh;
 use super::segments::{End, Inconsistency, Segments};
 use crate::mesh::topology::NONE;
+use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 /// Kind of a parameter-space path (Wicke et al. 2006, Sec. 4.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
@@ -309,7 +310,6 @@ fn link_pieces(
     crossings: &[Crossing],
     segs: &Segments,
 ) -> Result<(Vec<[u32; 2]>, Vec<[u32; 2]>), Inconsistency> {
-    let topo = &mesh.topology;
     let segments = &segs.segments;
     let n = segments.len() * 2;
     let mut links = vec![[END_I; 2]; n];
@@ -324,6 +324,53 @@ fn link_pieces(
             }
         }
     }
+    // Each piece end is written by the one crossing at that end (a segment's two ends are
+    // distinct crossings or a loop vertex), so the crossings can be linked in any order, or
+    // in two halves side by side: the links are the same.
+    {
+        let (links_view, across_view) = (atomic_view(&mut links), atomic_view(&mut across));
+        let link = |range: std::ops::Range<usize>| {
+            link_crossings(mesh, crossings, segs, range, links_view, across_view)
+        };
+        let nc = crossings.len();
+        if nc >= PAR_LINK_CROSSINGS && rayon::current_num_threads() > 1 {
+            // The first inconsistency in crossing order, as the sequential loop reports it.
+            let (first, second) = rayon::join(|| link(0..nc / 2), || link(nc / 2..nc));
+            first?;
+            second?;
+        } else {
+            link(0..nc)?;
+        }
+    }
+    Ok((links, across))
+}
+
+/// Crossings from which [`link_pieces`] links the two halves of the crossing list side by side.
+const PAR_LINK_CROSSINGS: usize = 2048;
+
+/// `v` as atomics (same size and bit validity), so that disjoint entries can be written from
+/// two threads through shared references.
+fn atomic_view(v: &mut [[u32; 2]]) -> &[[AtomicU32; 2]] {
+    // SAFETY: `[AtomicU32; 2]` has the size, alignment and bit validity of `[u32; 2]`, and the
+    // exclusive borrow of `v` lasts as long as the view, so nothing else reads or writes it
+    // meanwhile.
+    unsafe { &*(v as *mut [[u32; 2]] as *const [[AtomicU32; 2]]) }
+}
+
+/// The links and edges passed across at the crossings `range` of [`link_pieces`]: the piece
+/// ends of the segments ending at each crossing, written with relaxed stores (each end by its
+/// own crossing only). Returns the first inconsistency in the range.
+fn link_crossings(
+    mesh: &AnalysisMesh,
+    crossings: &[Crossing],
+    segs: &Segments,
+    range: std::ops::Range<usize>,
+    links: &[[AtomicU32; 2]],
+    across: &[[AtomicU32; 2]],
+) -> Result<(), Inconsistency> {
+    let topo = &mesh.topology;
+    let segments = &segs.segments;
+    let set = |v: &[[AtomicU32; 2]], p: usize, k: usize, x: u32| v[p][k].store(x, Relaxed);
     // The end of segment `s` at crossing `c` and the side of `s` in triangle `t`.
     let place = |s: u32, c: u32, t: u32| -> Option<(usize, usize)> {
         let seg = segments.get(s as usize)?;
@@ -331,7 +378,7 @@ fn link_pieces(
         let side = seg.triangles.iter().position(|&x| x == t)?;
         Some((k, side))
     };
-    for (c, cr) in crossings.iter().enumerate() {
+    for (c, cr) in range.clone().zip(&crossings[range]) {
         let c = c as u32;
         let [sa, sb] = segs.of_crossing[c as usize];
         let t = cr.triangle;
@@ -348,10 +395,10 @@ fn link_pieces(
         let pa_e = pa_t ^ 1;
         let x = segments[sa as usize].triangles[1 - side_a];
         let y = topo.other_triangle(cr.edge, x);
-        across[pa_e][ka] = cr.edge;
+        set(across, pa_e, ka, cr.edge);
         if y == NONE {
-            links[pa_e][ka] = END_B;
-            links[pa_t][ka] = END_I;
+            set(links, pa_e, ka, END_B);
+            set(links, pa_t, ka, END_I);
             continue;
         }
         if sb == NONE {
@@ -367,14 +414,14 @@ fn link_pieces(
         }
         let pb_t = 2 * sb as usize + side_b;
         let pb_e = pb_t ^ 1;
-        across[pb_e][kb] = cr.edge;
+        set(across, pb_e, kb, cr.edge);
         let to = |p: usize, k: usize| (2 * p + k) as u32;
-        links[pa_e][ka] = to(pb_e, kb);
-        links[pb_e][kb] = to(pa_e, ka);
-        links[pa_t][ka] = to(pb_t, kb);
-        links[pb_t][kb] = to(pa_t, ka);
+        set(links, pa_e, ka, to(pb_e, kb));
+        set(links, pb_e, kb, to(pa_e, ka));
+        set(links, pa_t, ka, to(pb_t, kb));
+        set(links, pb_t, kb, to(pa_t, ka));
     }
-    Ok((links, across))
+    Ok(())
 }
 
 /// Marks a piece as walked in [`walk_chains`] (both of its links are overwritten with it; it
@@ -556,6 +603,10 @@ impl OddEdges {
     }
 }
 
+/// Steps (pieces along the chains) from which [`trace_paths`] makes the paths of two halves of
+/// the chains side by side.
+const PAR_PATH_STEPS: usize = 4096;
+
 /// Paths and tanglements of the given segments.
 pub fn trace_paths(
     mesh: &AnalysisMesh,
@@ -565,11 +616,9 @@ pub fn trace_paths(
     let (mut links, across) = link_pieces(mesh, crossings, segs)?;
     let (chains, all_steps) = walk_chains(&mut links, segs);
     let steps_of = |c: &Chain| &all_steps[c.steps.clone()];
-    let mut scratch = OddEdges::new(mesh.topology.num_edges());
     let object_of_piece = |p: u32| mesh.object_of_triangle[piece_triangle(segs, p) as usize];
 
     // Classify chains; BLI chains are grouped by loop vertex to find CROSS pairs.
-    let mut paths: Vec<Path> = Vec::new();
     let mut bli_by_vertex: std::collections::BTreeMap<u32, Vec<usize>> = Default::default();
     #[derive(Clone, Copy, PartialEq)]
     enum Class {
@@ -605,10 +654,6 @@ pub fn trace_paths(
         };
         classes.push(class);
     }
-    // One path per chain, two per EIGHT (a CROSS pair of chains gives at most two): reserved
-    // once.
-    let eights = classes.iter().filter(|&&c| c == Class::Eight).count();
-    paths.reserve_exact(chains.len() + eights);
     // CROSS: exactly two BLI chains at one loop vertex.
     let mut cross_partner = vec![usize::MAX; chains.len()];
     for list in bli_by_vertex.values() {
@@ -618,160 +663,192 @@ pub fn trace_paths(
         }
     }
 
-    let mut path_of_piece = vec![u32::MAX; links.len()];
-    let mut make_path = |paths: &mut Vec<Path>,
+    // The paths of the chains `range` in chain order, with the tanglement kind of each path
+    // where the split decides it. Chains are independent here (a CROSS pair is made at its
+    // first chain, reading the second), so ranges of chains can be made side by side and
+    // concatenated.
+    let paths_of_chains = |range: std::ops::Range<usize>| {
+        let make_path = |paths: &mut Vec<Path>,
                          kinds: (PathKind, Option<PathKind>),
                          steps: &[(u32, u8)],
                          shape: (bool, Option<[EndKind; 2]>),
                          loop_vertices: &[u32],
                          cut_edges: &[u32]| {
-        let idx = paths.len() as u32;
-        for &(p, _) in steps {
-            path_of_piece[p as usize] = idx;
-        }
-        paths.push(Path::new(
-            kinds,
-            shape,
-            steps.iter().map(|s| s.0),
-            cut_edges,
-            loop_vertices,
-            object_of_piece(steps[0].0),
-        ));
-        idx
-    };
-    // Reused buffers for a path's cut edges and loop vertices (copied into the path).
-    let mut cut: Vec<u32> = Vec::new();
-    let mut lv: Vec<u32> = Vec::new();
-    let mut wrapped: Vec<(u32, u8)> = Vec::new();
+            paths.push(Path::new(
+                kinds,
+                shape,
+                steps.iter().map(|s| s.0),
+                cut_edges,
+                loop_vertices,
+                object_of_piece(steps[0].0),
+            ));
+        };
+        // One path per chain, two per EIGHT (a CROSS pair of chains gives at most two): reserved
+        // once.
+        let eights = classes[range.clone()]
+            .iter()
+            .filter(|&&c| c == Class::Eight)
+            .count();
+        let mut paths: Vec<Path> = Vec::with_capacity(range.len() + eights);
+        let mut scratch = OddEdges::new(mesh.topology.num_edges());
+        // Reused buffers for a path's cut edges and loop vertices (copied into the path).
+        let mut cut: Vec<u32> = Vec::new();
+        let mut lv: Vec<u32> = Vec::new();
+        let mut wrapped: Vec<(u32, u8)> = Vec::new();
 
-    let mut tanglement_kind_of_path: Vec<Option<&'static str>> =
-        Vec::with_capacity(paths.capacity());
-    for (ci, ch) in chains.iter().enumerate() {
-        match classes[ci] {
-            Class::Plain(kind) => {
-                let b0 = ch.ends.map(|e| e[0] == EndKind::Boundary).unwrap_or(false);
-                let b1 = ch.ends.map(|e| e[1] == EndKind::Boundary).unwrap_or(false);
-                cut.clear();
-                let flags = (ch.closed, b0, b1);
-                cut_of(&across, steps_of(ch), flags, &mut scratch, &mut cut);
-                lv.clear();
-                lv.extend(ch.turns.iter().map(|t| t.1));
-                lv.sort_unstable();
-                lv.dedup();
-                make_path(
-                    &mut paths,
-                    (kind, None),
-                    steps_of(ch),
-                    (ch.closed, ch.ends),
-                    &lv,
-                    &cut,
-                );
-                tanglement_kind_of_path.push(None);
-            }
-            Class::Eight => {
-                let (i, j) = (ch.turns[0].0, ch.turns[1].0);
-                let v = ch.turns[0].1;
-                let steps = steps_of(ch);
-                // The first lobe is a run of the chain; the second wraps around its start.
-                wrapped.clear();
-                wrapped.extend_from_slice(&steps[j + 1..]);
-                wrapped.extend_from_slice(&steps[..=i]);
-                for lobe in [&steps[i + 1..=j], &wrapped[..]] {
+        let mut tanglement_kind_of_path: Vec<Option<&'static str>> =
+            Vec::with_capacity(paths.capacity());
+        for (ci, ch) in range.clone().zip(&chains[range]) {
+            match classes[ci] {
+                Class::Plain(kind) => {
+                    let b0 = ch.ends.map(|e| e[0] == EndKind::Boundary).unwrap_or(false);
+                    let b1 = ch.ends.map(|e| e[1] == EndKind::Boundary).unwrap_or(false);
                     cut.clear();
-                    cut_of(&across, lobe, (true, false, false), &mut scratch, &mut cut);
+                    let flags = (ch.closed, b0, b1);
+                    cut_of(&across, steps_of(ch), flags, &mut scratch, &mut cut);
+                    lv.clear();
+                    lv.extend(ch.turns.iter().map(|t| t.1));
+                    lv.sort_unstable();
+                    lv.dedup();
                     make_path(
                         &mut paths,
-                        (PathKind::Closed, Some(PathKind::Eight)),
-                        lobe,
-                        (true, None),
-                        &[v],
-                        &cut,
-                    );
-                    tanglement_kind_of_path.push(Some("EIGHT"));
-                }
-            }
-            Class::Bli => {
-                let other = cross_partner[ci];
-                if other == usize::MAX {
-                    let ends = ch.ends.expect("open");
-                    cut.clear();
-                    cut_of(
-                        &across,
+                        (kind, None),
                         steps_of(ch),
-                        (
-                            false,
-                            ends[0] == EndKind::Boundary,
-                            ends[1] == EndKind::Boundary,
-                        ),
-                        &mut scratch,
-                        &mut cut,
-                    );
-                    make_path(
-                        &mut paths,
-                        (PathKind::BoundaryLoopInside, None),
-                        steps_of(ch),
-                        (false, ch.ends),
-                        &[ch.turns[0].1],
+                        (ch.closed, ch.ends),
+                        &lv,
                         &cut,
                     );
                     tanglement_kind_of_path.push(None);
-                    continue;
                 }
-                if other < ci {
-                    continue; // handled with its partner
-                }
-                let v = ch.turns[0].1;
-                // Each BLI = half toward its first end + half toward its last end, joined at v.
-                // Orient halves from the end to v, as (steps, end kind).
-                let halves = |c: &Chain| -> [(Vec<(u32, u8)>, EndKind); 2] {
-                    let t = c.turns[0].0;
-                    let ends = c.ends.expect("open");
-                    let steps = steps_of(c);
-                    let first: Vec<(u32, u8)> = steps[..=t].to_vec();
-                    let last: Vec<(u32, u8)> = steps[t + 1..]
-                        .iter()
-                        .rev()
-                        .map(|&(p, e)| (p, 1 - e))
-                        .collect();
-                    [(first, ends[0]), (last, ends[1])]
-                };
-                let (ha, hb) = (halves(ch), halves(&chains[other]));
-                for kind in [EndKind::Boundary, EndKind::Inside] {
-                    let a = ha.iter().find(|h| h.1 == kind);
-                    let b = hb.iter().find(|h| h.1 == kind);
-                    let (Some(a), Some(b)) = (a, b) else { continue };
-                    // a: end -> v; then b reversed: v -> end.
-                    let mut steps = a.0.clone();
-                    steps.extend(b.0.iter().rev().map(|&(p, e)| (p, 1 - e)));
-                    let is_b = kind == EndKind::Boundary;
-                    cut.clear();
-                    cut_of(&across, &a.0, (false, is_b, false), &mut scratch, &mut cut);
-                    cut_of(&across, &b.0, (false, is_b, false), &mut scratch, &mut cut);
-                    cut.sort_unstable();
-                    let mut odd = Vec::new();
-                    for &e in &cut {
-                        if odd.last() == Some(&e) {
-                            odd.pop();
-                        } else {
-                            odd.push(e);
-                        }
+                Class::Eight => {
+                    let (i, j) = (ch.turns[0].0, ch.turns[1].0);
+                    let v = ch.turns[0].1;
+                    let steps = steps_of(ch);
+                    // The first lobe is a run of the chain; the second wraps around its start.
+                    wrapped.clear();
+                    wrapped.extend_from_slice(&steps[j + 1..]);
+                    wrapped.extend_from_slice(&steps[..=i]);
+                    for lobe in [&steps[i + 1..=j], &wrapped[..]] {
+                        cut.clear();
+                        cut_of(&across, lobe, (true, false, false), &mut scratch, &mut cut);
+                        make_path(
+                            &mut paths,
+                            (PathKind::Closed, Some(PathKind::Eight)),
+                            lobe,
+                            (true, None),
+                            &[v],
+                            &cut,
+                        );
+                        tanglement_kind_of_path.push(Some("EIGHT"));
                     }
-                    let pk = if is_b {
-                        PathKind::BoundaryBoundary
-                    } else {
-                        PathKind::InsideInside
+                }
+                Class::Bli => {
+                    let other = cross_partner[ci];
+                    if other == usize::MAX {
+                        let ends = ch.ends.expect("open");
+                        cut.clear();
+                        cut_of(
+                            &across,
+                            steps_of(ch),
+                            (
+                                false,
+                                ends[0] == EndKind::Boundary,
+                                ends[1] == EndKind::Boundary,
+                            ),
+                            &mut scratch,
+                            &mut cut,
+                        );
+                        make_path(
+                            &mut paths,
+                            (PathKind::BoundaryLoopInside, None),
+                            steps_of(ch),
+                            (false, ch.ends),
+                            &[ch.turns[0].1],
+                            &cut,
+                        );
+                        tanglement_kind_of_path.push(None);
+                        continue;
+                    }
+                    if other < ci {
+                        continue; // handled with its partner
+                    }
+                    let v = ch.turns[0].1;
+                    // Each BLI = half toward its first end + half toward its last end, joined at v.
+                    // Orient halves from the end to v, as (steps, end kind).
+                    let halves = |c: &Chain| -> [(Vec<(u32, u8)>, EndKind); 2] {
+                        let t = c.turns[0].0;
+                        let ends = c.ends.expect("open");
+                        let steps = steps_of(c);
+                        let first: Vec<(u32, u8)> = steps[..=t].to_vec();
+                        let last: Vec<(u32, u8)> = steps[t + 1..]
+                            .iter()
+                            .rev()
+                            .map(|&(p, e)| (p, 1 - e))
+                            .collect();
+                        [(first, ends[0]), (last, ends[1])]
                     };
-                    make_path(
-                        &mut paths,
-                        (pk, Some(PathKind::Cross)),
-                        &steps,
-                        (false, Some([kind, kind])),
-                        &[v],
-                        &odd,
-                    );
-                    tanglement_kind_of_path.push(Some("CROSS"));
+                    let (ha, hb) = (halves(ch), halves(&chains[other]));
+                    for kind in [EndKind::Boundary, EndKind::Inside] {
+                        let a = ha.iter().find(|h| h.1 == kind);
+                        let b = hb.iter().find(|h| h.1 == kind);
+                        let (Some(a), Some(b)) = (a, b) else { continue };
+                        // a: end -> v; then b reversed: v -> end.
+                        let mut steps = a.0.clone();
+                        steps.extend(b.0.iter().rev().map(|&(p, e)| (p, 1 - e)));
+                        let is_b = kind == EndKind::Boundary;
+                        cut.clear();
+                        cut_of(&across, &a.0, (false, is_b, false), &mut scratch, &mut cut);
+                        cut_of(&across, &b.0, (false, is_b, false), &mut scratch, &mut cut);
+                        cut.sort_unstable();
+                        let mut odd = Vec::new();
+                        for &e in &cut {
+                            if odd.last() == Some(&e) {
+                                odd.pop();
+                            } else {
+                                odd.push(e);
+                            }
+                        }
+                        let pk = if is_b {
+                            PathKind::BoundaryBoundary
+                        } else {
+                            PathKind::InsideInside
+                        };
+                        make_path(
+                            &mut paths,
+                            (pk, Some(PathKind::Cross)),
+                            &steps,
+                            (false, Some([kind, kind])),
+                            &[v],
+                            &odd,
+                        );
+                        tanglement_kind_of_path.push(Some("CROSS"));
+                    }
                 }
             }
+        }
+
+        (paths, tanglement_kind_of_path)
+    };
+    let (mut paths, tanglement_kind_of_path) =
+        if all_steps.len() >= PAR_PATH_STEPS && rayon::current_num_threads() > 1 {
+            // Two ranges of chains with about as many steps each (the steps are in chain order).
+            let half = all_steps.len() / 2;
+            let m = chains.partition_point(|c| c.steps.start < half);
+            let ((mut paths, mut kinds), (p2, k2)) = rayon::join(
+                || paths_of_chains(0..m),
+                || paths_of_chains(m..chains.len()),
+            );
+            paths.extend(p2);
+            kinds.extend(k2);
+            (paths, kinds)
+        } else {
+            paths_of_chains(0..chains.len())
+        };
+    // Each piece is on one path at most.
+    let mut path_of_piece = vec![u32::MAX; links.len()];
+    for (idx, p) in paths.iter().enumerate() {
+        for &piece in p.pieces() {
+            path_of_piece[piece as usize] = idx as u32;
         }
     }
 

@@ -195,7 +195,7 @@ const STRADDLING: [[usize; 2]; 7] = [[0, 0], [2, 0], [0, 1], [1, 2], [1, 2], [0,
 /// vertex; see the module docs. A
 /// certified answer is the exact one, also under the symbolic perturbation of
 /// [`super::predicates::orient3d_sos`] (certified values are non-zero).
-#[inline]
+#[inline(always)]
 pub fn pair_crossings(a: &PreparedTriangle, b: &PreparedTriangle) -> PairOutcome {
     let r = pair_reach(a, b);
     let ma = side_masks(a, b, r);
