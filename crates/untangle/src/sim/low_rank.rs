@@ -58,6 +58,8 @@ pub struct LowRank {
     /// `n x groups`, column-major: `B^-1 w_g` with the weights of fixed nodes left out.
     columns: Vec<f64>,
     capacitance: nalgebra::Cholesky<f64, nalgebra::Dyn>,
+    /// Whether the columns were solved in single precision.
+    single: bool,
 }
 
 impl LowRank {
@@ -75,12 +77,48 @@ impl LowRank {
         terms: Vec<Term>,
         single: bool,
     ) -> Option<LowRank> {
+        Self::reusing(factor, fixed, groups, terms, single, None)
+    }
+
+    /// [`LowRank::new`] taking the columns `B^-1 w` of the groups that `prev` (a correction
+    /// of the same factor and fixed nodes, e.g. the previous release round's) has too, with
+    /// the same node weights, from `prev` instead of solving them again: the same bits, as
+    /// [`ScalarCholesky::solve_many_single`] solves each column alone (its lanes do not mix).
+    /// Only single-precision columns are taken over (faer's many-column solve is not known to
+    /// give each column the bits of its own solve).
+    pub fn reusing(
+        factor: &ScalarCholesky,
+        fixed: &[bool],
+        groups: Vec<Group>,
+        terms: Vec<Term>,
+        single: bool,
+        prev: Option<&LowRank>,
+    ) -> Option<LowRank> {
         let n = fixed.len();
         if groups.len() > MAX_GROUPS || !factor.is_factored() {
             return None;
         }
+        let same = |a: &Group, b: &Group| {
+            a.nodes == b.nodes
+                && a.weights
+                    .iter()
+                    .zip(&b.weights)
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+        };
+        // Per group, the column of `prev` it takes over, if any.
+        let taken: Vec<Option<usize>> = groups
+            .iter()
+            .map(|g| {
+                let p = prev.filter(|p| single && p.single && p.n == n)?;
+                p.groups.iter().position(|q| same(g, q))
+            })
+            .collect();
         let mut columns = vec![0.0; n * groups.len()];
-        for (g, col) in groups.iter().zip(columns.chunks_mut(n.max(1))) {
+        // The columns to solve, packed.
+        let fresh: Vec<usize> = (0..groups.len()).filter(|&g| taken[g].is_none()).collect();
+        let mut solve = vec![0.0; n * fresh.len()];
+        for (&g, col) in fresh.iter().zip(solve.chunks_mut(n.max(1))) {
+            let g = &groups[g];
             for k in 0..4 {
                 let i = g.nodes[k] as usize;
                 if !fixed[i] {
@@ -89,9 +127,19 @@ impl LowRank {
             }
         }
         if single {
-            factor.solve_many_single(&mut columns);
+            factor.solve_many_single(&mut solve);
         } else {
-            factor.solve_many(&mut columns);
+            factor.solve_many(&mut solve);
+        }
+        for (&g, col) in fresh.iter().zip(solve.chunks(n.max(1))) {
+            columns[g * n..(g + 1) * n].copy_from_slice(col);
+        }
+        if let Some(p) = prev {
+            for (g, t) in taken.iter().enumerate() {
+                if let Some(q) = *t {
+                    columns[g * n..(g + 1) * n].copy_from_slice(&p.columns[q * n..(q + 1) * n]);
+                }
+            }
         }
         // w_a^T B^-1 w_b per pair of groups, then per pair of terms times d_r . d_s.
         let wg = |a: &Group, b: usize| -> f64 {
@@ -119,6 +167,7 @@ impl LowRank {
             terms,
             columns,
             capacitance,
+            single,
         })
     }
 
@@ -386,6 +435,31 @@ mod tests {
                     prop_assert!((dx32[i][d] - want[3 * i + d]).abs() <= 1e-5 * scale,
                         "single: dx[{}][{}] = {} vs {}", i, d, dx32[i][d], want[3 * i + d]);
                 }
+            }
+            // A release round keeps some groups (and adds a new one): taken over from `lr32`,
+            // the same bits as solved afresh.
+            let mut sub_groups = Vec::new();
+            let mut sub_terms = Vec::new();
+            for (g, grp) in groups.iter().enumerate().filter(|(g, _)| g % 2 == seed as usize % 2) {
+                for t in terms.iter().filter(|t| t.group as usize == g) {
+                    sub_terms.push(Term { group: sub_groups.len() as u32, ..*t });
+                }
+                sub_groups.push(*grp);
+            }
+            let v = rng.random_range(0..n as u32);
+            sub_terms.push(Term { group: sub_groups.len() as u32, dir: unit(&mut rng), inv_k: 0.5 });
+            sub_groups.push(Group { nodes: [v, 0, 0, 0], weights: [1.0, 0.0, 0.0, 0.0] });
+            let fresh = LowRank::new(&chol, &fixed, sub_groups.clone(), sub_terms.clone(), true);
+            let reused = LowRank::reusing(&chol, &fixed, sub_groups, sub_terms, true, Some(&lr32));
+            prop_assert_eq!(fresh.is_some(), reused.is_some());
+            if let (Some(a), Some(b)) = (fresh, reused) {
+                prop_assert!(a.columns.iter().zip(&b.columns).all(|(p, q)| p.to_bits() == q.to_bits()));
+                let mut za = r.clone();
+                chol.solve3(&mut za);
+                let mut zb = za.clone();
+                a.correct(&x, &targets, &mut za, None);
+                b.correct(&x, &targets, &mut zb, None);
+                prop_assert!(za.iter().zip(&zb).all(|(p, q)| p == q));
             }
         }
     }

@@ -1121,6 +1121,8 @@ impl Simulator {
         let (mut prev, mut cur) = (Vec::new(), Vec::new());
         // The iterations run inside the pool (one hand-over to a worker thread per step instead
         // of one per parallel loop: under load a woken worker is often descheduled).
+        // The last release round's low-rank correction (its columns are reused).
+        let mut prev_lr: Option<low_rank::LowRank> = None;
         rayon::scope(|_| {
             'rounds: loop {
                 // The global system of this round: base matrix plus contact springs and friction,
@@ -1180,7 +1182,15 @@ impl Simulator {
                         let f = pd.factor.as_ref()?;
                         let (groups, lr_terms) =
                             low_rank_terms(&springs, &spring_k, &contacts, &friction);
-                        low_rank::LowRank::new(f, &self.pinned, groups, lr_terms, true)
+                        // A release round keeps most groups: their columns are taken over.
+                        low_rank::LowRank::reusing(
+                            f,
+                            &self.pinned,
+                            groups,
+                            lr_terms,
+                            true,
+                            prev_lr.as_ref(),
+                        )
                     })
                     .flatten();
                 // Otherwise the terms next to the factored matrix, for CG's products.
@@ -1340,6 +1350,7 @@ impl Simulator {
                         springs = keep_s;
                         if released {
                             releases += 1;
+                            prev_lr = lr;
                             continue 'rounds;
                         }
                     }
