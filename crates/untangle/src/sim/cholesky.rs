@@ -1673,7 +1673,7 @@ impl ScalarCholesky {
     where
         F: Fn(usize) -> Vec3 + Sync,
     {
-        self.increment(|i, _| rhs(i), out, false);
+        self.increment(|i, _| rhs(i), out, |_, _, d| d);
     }
 
     /// [`ScalarCholesky::solve_increment_with`] adding the increment to `x` (`x += B^-1 r`),
@@ -1685,14 +1685,26 @@ impl ScalarCholesky {
     where
         F: Fn(usize, &[Vec3]) -> Vec3 + Sync,
     {
-        self.increment(rhs, x, true);
+        self.increment(rhs, x, |_, o, d| o + d);
     }
 
-    /// The solve of [`ScalarCholesky::solve_increment_with`] (`add`: false) and
-    /// [`ScalarCholesky::add_increment_with`] (`add`: true).
-    fn increment<F>(&self, rhs: F, out: &mut [Vec3], add: bool)
+    /// [`ScalarCholesky::add_increment_with`] with row `i` of the result mapped: `x[i]` becomes
+    /// `map(i, x[i], x[i] + dx[i])` (`x[i]` the row before the update), called once per row
+    /// where the increment is added (from two threads at once with a split, on distinct rows).
+    pub fn add_increment_map<F, G>(&self, rhs: F, x: &mut [Vec3], map: G)
     where
         F: Fn(usize, &[Vec3]) -> Vec3 + Sync,
+        G: Fn(usize, Vec3, Vec3) -> Vec3 + Sync,
+    {
+        self.increment(rhs, x, |i, o, d| map(i, o, o + d));
+    }
+
+    /// The solve of [`ScalarCholesky::solve_increment_with`] and
+    /// [`ScalarCholesky::add_increment_with`]: row `i` of `out` becomes `fin(i, out[i], dx[i])`.
+    fn increment<F, G>(&self, rhs: F, out: &mut [Vec3], fin: G)
+    where
+        F: Fn(usize, &[Vec3]) -> Vec3 + Sync,
+        G: Fn(usize, Vec3, Vec3) -> Vec3 + Sync,
     {
         if !self.factored {
             return;
@@ -1724,11 +1736,7 @@ impl ScalarCholesky {
                     let d = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
                     // SAFETY: see above (`i` < n: a row of the permutation).
                     let o = unsafe { &mut *op.at(i) };
-                    if add {
-                        *o += d;
-                    } else {
-                        *o = d;
-                    }
+                    *o = fin(i, *o, d);
                 },
             );
             return;
@@ -1748,11 +1756,7 @@ impl ScalarCholesky {
         solve_x_and_yz(llt, stack_x, stack, buf, n);
         for (i, v) in out.iter_mut().enumerate() {
             let d = Vec3::new(buf[i] as f64, buf[n + i] as f64, buf[2 * n + i] as f64);
-            if add {
-                *v += d;
-            } else {
-                *v = d;
-            }
+            *v = fin(i, *v, d);
         }
     }
 

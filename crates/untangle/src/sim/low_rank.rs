@@ -223,6 +223,63 @@ impl LowRank {
         z: &mut [Vec3],
         force: Option<&mut Vec<Vec3>>,
     ) {
+        let dirs = self.directions(x, targets, z, force);
+        let n = self.n;
+        for (g, d) in dirs.iter().enumerate() {
+            if *d == Vec3::zeros() {
+                continue;
+            }
+            let col = &self.columns[g * n..(g + 1) * n];
+            for (zi, &c) in z.iter_mut().zip(col) {
+                *zi -= d * c;
+            }
+        }
+    }
+
+    /// [`LowRank::correct`] added to the iterate: `x += dx` (`dx` the corrected `z`), in
+    /// parallel over the rows, each row's operations those of `correct` followed by
+    /// `x[i] += z[i]` (the same bits); `z` is left as it was.
+    pub fn add_corrected(
+        &self,
+        x: &mut [Vec3],
+        targets: &[Vec3],
+        z: &[Vec3],
+        force: Option<&mut Vec<Vec3>>,
+    ) {
+        use rayon::prelude::*;
+        let n = self.n;
+        let dirs = self.directions(x, targets, z, force);
+        let used: Vec<(usize, Vec3)> = dirs
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| **d != Vec3::zeros())
+            .map(|(g, d)| (g, *d))
+            .collect();
+        x.par_chunks_mut(ROW_CHUNK)
+            .zip(z.par_chunks(ROW_CHUNK))
+            .enumerate()
+            .for_each(|(k, (xs, zs))| {
+                for (j, (xi, zi)) in xs.iter_mut().zip(zs).enumerate() {
+                    let i = k * ROW_CHUNK + j;
+                    let mut d = *zi;
+                    for (g, dir) in &used {
+                        d -= dir * self.columns[g * n + i];
+                    }
+                    *xi += d;
+                }
+            });
+    }
+
+    /// The constraint forces' and penalties' multipliers `mu` for `z` (see
+    /// [`LowRank::correct`]) summed per group into the direction `sum_r mu_r d_r`; with
+    /// `force`, writes the constraint forces there.
+    fn directions(
+        &self,
+        x: &[Vec3],
+        targets: &[Vec3],
+        z: &[Vec3],
+        force: Option<&mut Vec<Vec3>>,
+    ) -> Vec<Vec3> {
         let n = self.n;
         let q = DVector::from_iterator(
             self.terms.len(),
@@ -247,15 +304,6 @@ impl LowRank {
         for (t, m) in self.terms.iter().zip(mu.iter()) {
             dirs[t.group as usize] += t.dir * *m;
         }
-        for (g, d) in dirs.iter().enumerate() {
-            if *d == Vec3::zeros() {
-                continue;
-            }
-            let col = &self.columns[g * n..(g + 1) * n];
-            for (zi, &c) in z.iter_mut().zip(col) {
-                *zi -= d * c;
-            }
-        }
         if let Some(f) = force {
             f.clear();
             f.resize(n, Vec3::zeros());
@@ -268,8 +316,12 @@ impl LowRank {
                 }
             }
         }
+        dirs
     }
 }
+
+/// Rows per parallel task of [`LowRank::add_corrected`].
+const ROW_CHUNK: usize = 1024;
 
 #[cfg(test)]
 mod tests {
@@ -429,7 +481,23 @@ mod tests {
             let lr32 = LowRank::new(&chol, &fixed, groups.clone(), terms.clone(), true).unwrap();
             let mut dx32 = r.clone();
             chol.solve3(&mut dx32);
+            let mut z32 = dx32.clone();
             lr32.correct(&x, &targets, &mut dx32, None);
+            // Added to an iterate in parallel: the bits of `correct`, then `x + dx`.
+            let x1: Vec<Vec3> = (0..n).map(|_| unit(&mut rng)).collect();
+            let mut got = x1.clone();
+            let want_force = {
+                let mut f = Vec::new();
+                lr32.correct(&x1, &targets, &mut z32.clone(), Some(&mut f));
+                f
+            };
+            let mut got_force = Vec::new();
+            lr32.add_corrected(&mut got, &targets, &z32, Some(&mut got_force));
+            lr32.correct(&x1, &targets, &mut z32, None);
+            for i in 0..n {
+                prop_assert_eq!(got[i], x1[i] + z32[i]);
+            }
+            prop_assert_eq!(got_force, want_force);
             for i in 0..n {
                 for d in 0..3 {
                     prop_assert!((dx32[i][d] - want[3 * i + d]).abs() <= 1e-5 * scale,
