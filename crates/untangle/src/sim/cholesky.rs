@@ -125,6 +125,13 @@ struct Layout {
     rows: Vec<u32>,
     /// Row `i` of the permuted system is row `fwd[i]` of the original one.
     fwd: Vec<u32>,
+    /// The permuted row of each original row (the inverse of `fwd`).
+    inv: Vec<u32>,
+    /// The supernode holding each permuted row.
+    owner: Vec<u32>,
+    /// The parent of each supernode in the elimination tree (the one holding its first row
+    /// below the diagonal block), `u32::MAX` at a root.
+    parent: Vec<u32>,
     /// The two-thread schedule of the substitutions (`None`: sequential).
     split: Option<Split>,
 }
@@ -208,11 +215,32 @@ impl OutRows {
     }
 }
 
+/// A raw pointer to the column-major columns of [`ScalarCholesky::solve_many_single`], written
+/// row by row from the two parts of a split backward substitution (distinct rows).
+#[derive(Clone, Copy)]
+struct OutCols(*mut f64);
+// SAFETY: the parts write disjoint rows.
+unsafe impl Send for OutCols {}
+// SAFETY: as above.
+unsafe impl Sync for OutCols {}
+
+impl OutCols {
+    /// Entry `k` (a method, so closures capture the `Sync` wrapper, not the raw pointer).
+    fn at(self, k: usize) -> *mut f64 {
+        self.0.wrapping_add(k)
+    }
+}
+
 /// One phase of a (split) substitution, see [`Split`].
 #[derive(Clone, Copy)]
-enum Phase {
+enum Phase<'a> {
     /// The whole sequential substitution.
     All,
+    /// Forward over the marked supernodes only, in order (the others have zero right-hand
+    /// sides and receive no updates: see [`Layout::solve_sparse`]).
+    ForwardMarked(&'a [bool]),
+    /// Backward over all supernodes.
+    BackwardAll,
     /// Forward over part `0` or `1`, logging top updates to the pointer.
     ForwardPart(usize, Rows),
     /// The forward top phase, with the two parts' logs.
@@ -259,15 +287,47 @@ impl Layout {
             return None;
         }
         let rows: Vec<u32> = sn.row_idx().iter().map(|&r| r as u32).collect();
-        let fwd = match symbolic.perm() {
+        let fwd: Vec<u32> = match symbolic.perm() {
             Some(p) => p.arrays().0.iter().map(|&i| i as u32).collect(),
             None => (0..n as u32).collect(),
         };
+        let mut inv = vec![u32::MAX; n];
+        for (k, &i) in fwd.iter().enumerate() {
+            *inv.get_mut(i as usize)? = k as u32;
+        }
+        let mut owner = vec![u32::MAX; n];
+        for (k, s) in nodes.iter().enumerate() {
+            owner[s.start..s.start + s.size].fill(k as u32);
+        }
+        if inv.contains(&u32::MAX) || owner.contains(&u32::MAX) {
+            return None;
+        }
+        let parent: Vec<u32> = nodes
+            .iter()
+            .map(|s| {
+                if s.m == 0 {
+                    u32::MAX
+                } else {
+                    owner[rows[s.pat] as usize]
+                }
+            })
+            .collect();
+        // Every row below a diagonal block belongs to a later supernode (an ancestor).
+        if parent
+            .iter()
+            .enumerate()
+            .any(|(k, &p)| p != u32::MAX && p as usize <= k)
+        {
+            return None;
+        }
         let split = Split::new(&nodes, &rows, n);
         Some(Layout {
             nodes,
             rows,
             fwd,
+            inv,
+            owner,
+            parent,
             split,
         })
     }
@@ -415,12 +475,86 @@ impl Layout {
         }
     }
 
+    /// [`Layout::solve`] for a right-hand side that is zero outside the original rows `rows`
+    /// (`rhs` is asked for those only; repeats are harmless): the forward substitution runs only
+    /// over the supernodes holding such a row and their ancestors (the others would subtract
+    /// zero updates from zero rows: every row of theirs stays `+0` and every update they send
+    /// is `+0`, so skipping them leaves every row's bits unchanged), the backward one over all
+    /// (with the split's two parts side by side). The same bits as [`Layout::solve`] with the
+    /// zero rows given. `marked`: scratch.
+    fn solve_sparse(
+        &self,
+        l: &[f32],
+        x: &mut [[f32; 4]],
+        marked: &mut Vec<bool>,
+        rows: &[usize],
+        rhs: impl Fn(usize) -> [f32; 4],
+        emit: impl Fn(usize, [f32; 4]) + Sync,
+    ) {
+        assert_eq!(x.len(), self.fwd.len(), "one row per matrix row");
+        assert!(
+            self.nodes
+                .last()
+                .is_none_or(|s| s.val + (s.size + s.m) * s.size <= l.len()),
+            "factor values of the layout"
+        );
+        assert!(
+            self.nodes
+                .iter()
+                .all(|s| s.tval == usize::MAX || s.tval + row_stride(s.size) * s.m <= l.len()),
+            "row-major copies of the layout"
+        );
+        x.fill([0.0; 4]);
+        marked.clear();
+        marked.resize(self.nodes.len(), false);
+        for &i in rows {
+            let k = self.inv[i] as usize;
+            x[k] = rhs(i);
+            let mut s = self.owner[k];
+            while s != u32::MAX && !marked[s as usize] {
+                marked[s as usize] = true;
+                s = self.parent[s as usize];
+            }
+        }
+        let xp = Rows(x.as_mut_ptr());
+        // SAFETY: `x` has a row per matrix row (asserted); the forward phase runs on this
+        // thread alone, the backward phases as in `Layout::solve` (the parts write disjoint rows).
+        unsafe {
+            self.run(l, xp, Phase::ForwardMarked(marked));
+            let Some(split) = &self.split else {
+                self.run(l, xp, Phase::BackwardAll);
+                for (k, &f) in self.fwd.iter().enumerate() {
+                    emit(f as usize, *xp.at(k));
+                }
+                return;
+            };
+            let out = |p: usize| {
+                for &(a, b) in &split.rows_of[p] {
+                    for k in a as usize..b as usize {
+                        emit(self.fwd[k] as usize, *xp.at(k));
+                    }
+                }
+            };
+            self.run(l, xp, Phase::BackwardTop);
+            rayon::join(
+                || {
+                    self.run(l, xp, Phase::BackwardPart(0));
+                    out(0)
+                },
+                || {
+                    self.run(l, xp, Phase::BackwardPart(1));
+                    out(1)
+                },
+            );
+        }
+    }
+
     /// Runs `phase` of the substitution, with AVX when the CPU has it.
     ///
     /// # Safety
     /// `xp` points to a row per matrix row, the phase's logs to their lengths; no other
     /// thread accesses the rows this phase writes, or writes the rows it reads.
-    unsafe fn run(&self, l: &[f32], xp: Rows, phase: Phase) {
+    unsafe fn run(&self, l: &[f32], xp: Rows, phase: Phase<'_>) {
         #[cfg(target_arch = "x86_64")]
         if std::is_x86_feature_detected!("avx") {
             // SAFETY: the CPU has AVX (checked above); the rest is the caller's.
@@ -435,7 +569,7 @@ impl Layout {
     /// [`Wide`]): the same operations on every lane in the same order, so the same bits.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    unsafe fn run_avx(&self, l: &[f32], xp: Rows, phase: Phase) {
+    unsafe fn run_avx(&self, l: &[f32], xp: Rows, phase: Phase<'_>) {
         // SAFETY: the caller's; the CPU has AVX (this function's feature).
         unsafe { self.run_lanes::<true>(l, xp, phase) }
     }
@@ -443,7 +577,7 @@ impl Layout {
     /// The substitution phases; `WIDE`: the loops over the rows below the diagonal blocks with
     /// [`Wide`] (only inside a function compiled for AVX).
     #[inline(always)]
-    unsafe fn run_lanes<const WIDE: bool>(&self, l: &[f32], xp: Rows, phase: Phase) {
+    unsafe fn run_lanes<const WIDE: bool>(&self, l: &[f32], xp: Rows, phase: Phase<'_>) {
         let nodes = &self.nodes;
         // SAFETY (all calls below): the caller's, and `Layout::new`/`Split::new` checked the
         // indices.
@@ -453,6 +587,16 @@ impl Layout {
                     for s in nodes {
                         self.forward::<WIDE>(l, xp.0, s, s.m, std::ptr::null_mut());
                     }
+                    for s in nodes.iter().rev() {
+                        self.backward::<WIDE>(l, xp.0, s);
+                    }
+                }
+                Phase::ForwardMarked(marked) => {
+                    for (s, _) in nodes.iter().zip(marked).filter(|(_, &k)| k) {
+                        self.forward::<WIDE>(l, xp.0, s, s.m, std::ptr::null_mut());
+                    }
+                }
+                Phase::BackwardAll => {
                     for s in nodes.iter().rev() {
                         self.backward::<WIDE>(l, xp.0, s);
                     }
@@ -1529,7 +1673,7 @@ impl ScalarCholesky {
     where
         F: Fn(usize) -> Vec3 + Sync,
     {
-        self.increment(|i, _| rhs(i), out, false);
+        self.increment(|i, _| rhs(i), out, |_, _, d| d);
     }
 
     /// [`ScalarCholesky::solve_increment_with`] adding the increment to `x` (`x += B^-1 r`),
@@ -1541,14 +1685,26 @@ impl ScalarCholesky {
     where
         F: Fn(usize, &[Vec3]) -> Vec3 + Sync,
     {
-        self.increment(rhs, x, true);
+        self.increment(rhs, x, |_, o, d| o + d);
     }
 
-    /// The solve of [`ScalarCholesky::solve_increment_with`] (`add`: false) and
-    /// [`ScalarCholesky::add_increment_with`] (`add`: true).
-    fn increment<F>(&self, rhs: F, out: &mut [Vec3], add: bool)
+    /// [`ScalarCholesky::add_increment_with`] with row `i` of the result mapped: `x[i]` becomes
+    /// `map(i, x[i], x[i] + dx[i])` (`x[i]` the row before the update), called once per row
+    /// where the increment is added (from two threads at once with a split, on distinct rows).
+    pub fn add_increment_map<F, G>(&self, rhs: F, x: &mut [Vec3], map: G)
     where
         F: Fn(usize, &[Vec3]) -> Vec3 + Sync,
+        G: Fn(usize, Vec3, Vec3) -> Vec3 + Sync,
+    {
+        self.increment(rhs, x, |i, o, d| map(i, o, o + d));
+    }
+
+    /// The solve of [`ScalarCholesky::solve_increment_with`] and
+    /// [`ScalarCholesky::add_increment_with`]: row `i` of `out` becomes `fin(i, out[i], dx[i])`.
+    fn increment<F, G>(&self, rhs: F, out: &mut [Vec3], fin: G)
+    where
+        F: Fn(usize, &[Vec3]) -> Vec3 + Sync,
+        G: Fn(usize, Vec3, Vec3) -> Vec3 + Sync,
     {
         if !self.factored {
             return;
@@ -1580,11 +1736,7 @@ impl ScalarCholesky {
                     let d = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
                     // SAFETY: see above (`i` < n: a row of the permutation).
                     let o = unsafe { &mut *op.at(i) };
-                    if add {
-                        *o += d;
-                    } else {
-                        *o = d;
-                    }
+                    *o = fin(i, *o, d);
                 },
             );
             return;
@@ -1604,11 +1756,7 @@ impl ScalarCholesky {
         solve_x_and_yz(llt, stack_x, stack, buf, n);
         for (i, v) in out.iter_mut().enumerate() {
             let d = Vec3::new(buf[i] as f64, buf[n + i] as f64, buf[2 * n + i] as f64);
-            if add {
-                *v += d;
-            } else {
-                *v = d;
-            }
+            *v = fin(i, *v, d);
         }
     }
 
@@ -1687,6 +1835,47 @@ impl ScalarCholesky {
             return;
         }
         let k = cols.len() / n;
+        if let Some(layout) = &self.layout {
+            // Columns of a few nonzeros (the low-rank correction's node weights): the forward
+            // substitution only along their elimination-tree paths, the same bits.
+            let mut guard = scratch(&self.lanes, Default::default);
+            let (x, _) = &mut *guard;
+            x.resize(n, [0.0; 4]);
+            let (mut rows, mut marked) = (Vec::new(), Vec::new());
+            for c0 in (0..k).step_by(3) {
+                let m = (k - c0).min(3);
+                let cs = &mut cols[c0 * n..(c0 + m) * n];
+                rows.clear();
+                rows.extend((0..n).filter(|&i| (0..m).any(|j| cs[j * n + i].to_bits() != 0)));
+                let out = OutCols(cs.as_mut_ptr());
+                // SAFETY: `j < m`, `i < n`: inside `cs`; read only before any row is emitted.
+                let lane = |j: usize, i: usize| {
+                    if j < m {
+                        unsafe { *out.at(j * n + i) }
+                    } else {
+                        0.0
+                    }
+                };
+                layout.solve_sparse(
+                    &self.factor32,
+                    x,
+                    &mut marked,
+                    &rows,
+                    |i| {
+                        let v = Vec3::new(lane(0, i), lane(1, i), lane(2, i));
+                        [v.x as f32, v.y as f32, v.z as f32, 0.0]
+                    },
+                    |i, xi| {
+                        for (j, &v) in xi.iter().take(m).enumerate() {
+                            // SAFETY: `j < m`, `i < n`: inside `cs`; each row is emitted once,
+                            // after every `rhs` call has returned.
+                            unsafe { *out.at(j * n + i) = v as f64 };
+                        }
+                    },
+                );
+            }
+            return;
+        }
         let mut out = vec![Vec3::zeros(); n];
         for c0 in (0..k).step_by(3) {
             let m = (k - c0).min(3);
@@ -2005,6 +2194,82 @@ mod tests {
             }
         }
         BsrPattern::from_pairs(w * h, pairs)
+    }
+
+    /// The columns of [`ScalarCholesky::solve_many_single`] with a few nonzeros each (the
+    /// forward substitution only along their elimination-tree paths) against the full
+    /// substitution of each three columns ([`ScalarCholesky::solve_increment_with`], every row
+    /// given): the same bits, on pools of one and two threads, with split and sequential
+    /// layouts, for 1 to 7 columns (a last pass of one, two or three), columns on fixed
+    /// nodes (all zero) and repeated nodes.
+    #[test]
+    fn sparse_columns_give_the_bits_of_the_full_substitution() {
+        for (seed, (w, h)) in [(40usize, 40usize), (33, 51), (6, 5)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(100 + seed as u64);
+            let n = w * h;
+            let pattern = grid_pattern(w, h);
+            let (_, values, fixed) = random_spd(&pattern, &mut rng, -1.0..0.0, 0.05, 0.1..1.0);
+            let mut chol =
+                ScalarCholesky::with_threshold(&pattern, SupernodalThreshold::FORCE_SUPERNODAL)
+                    .unwrap();
+            assert!(chol.factor(&pattern, &values, &fixed));
+            let layout = chol.layout.as_ref().unwrap();
+            assert_eq!(layout.split.is_some(), n > 100, "grid {w}x{h}");
+            for k in 1..=7 {
+                let mut cols = vec![0.0; n * k];
+                for col in cols.chunks_mut(n) {
+                    for _ in 0..4 {
+                        let i = rng.random_range(0..n);
+                        if !fixed[i] {
+                            col[i] += rng.random_range(-1.0..1.0);
+                        }
+                    }
+                }
+                // One column on the nodes of another, one (if any) on fixed nodes only.
+                if k >= 2 {
+                    let (a, b) = cols.split_at_mut(n);
+                    b[..n].copy_from_slice(a);
+                    b[..n].iter_mut().for_each(|v| *v *= 0.5);
+                }
+                if k >= 3 {
+                    cols[2 * n..3 * n].fill(0.0);
+                }
+                let mut want = cols.clone();
+                let mut out = vec![Vec3::zeros(); n];
+                for c0 in (0..k).step_by(3) {
+                    let m = (k - c0).min(3);
+                    let cs = &want[c0 * n..(c0 + m) * n];
+                    let lane = |j: usize, i: usize| if j < m { cs[j * n + i] } else { 0.0 };
+                    chol.solve_increment_with(
+                        |i| Vec3::new(lane(0, i), lane(1, i), lane(2, i)),
+                        &mut out,
+                    );
+                    for j in 0..m {
+                        for (c, o) in want[(c0 + j) * n..(c0 + j + 1) * n].iter_mut().zip(&out) {
+                            *c = o[j];
+                        }
+                    }
+                }
+                for threads in [1, 2] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let mut got = cols.clone();
+                    pool.install(|| chol.solve_many_single(&mut got));
+                    for (q, (g, w)) in got.iter().zip(&want).enumerate() {
+                        assert_eq!(
+                            g.to_bits(),
+                            w.to_bits(),
+                            "grid {w}x{h}, {k} columns, {threads} threads, entry {q}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     /// The solve (two-thread substitution of a [`Split`], 8-wide AVX loops when the CPU has

@@ -58,6 +58,8 @@ pub struct LowRank {
     /// `n x groups`, column-major: `B^-1 w_g` with the weights of fixed nodes left out.
     columns: Vec<f64>,
     capacitance: nalgebra::Cholesky<f64, nalgebra::Dyn>,
+    /// Whether the columns were solved in single precision.
+    single: bool,
 }
 
 impl LowRank {
@@ -75,12 +77,48 @@ impl LowRank {
         terms: Vec<Term>,
         single: bool,
     ) -> Option<LowRank> {
+        Self::reusing(factor, fixed, groups, terms, single, None)
+    }
+
+    /// [`LowRank::new`] taking the columns `B^-1 w` of the groups that `prev` (a correction
+    /// of the same factor and fixed nodes, e.g. the previous release round's) has too, with
+    /// the same node weights, from `prev` instead of solving them again: the same bits, as
+    /// [`ScalarCholesky::solve_many_single`] solves each column alone (its lanes do not mix).
+    /// Only single-precision columns are taken over (faer's many-column solve is not known to
+    /// give each column the bits of its own solve).
+    pub fn reusing(
+        factor: &ScalarCholesky,
+        fixed: &[bool],
+        groups: Vec<Group>,
+        terms: Vec<Term>,
+        single: bool,
+        prev: Option<&LowRank>,
+    ) -> Option<LowRank> {
         let n = fixed.len();
         if groups.len() > MAX_GROUPS || !factor.is_factored() {
             return None;
         }
+        let same = |a: &Group, b: &Group| {
+            a.nodes == b.nodes
+                && a.weights
+                    .iter()
+                    .zip(&b.weights)
+                    .all(|(x, y)| x.to_bits() == y.to_bits())
+        };
+        // Per group, the column of `prev` it takes over, if any.
+        let taken: Vec<Option<usize>> = groups
+            .iter()
+            .map(|g| {
+                let p = prev.filter(|p| single && p.single && p.n == n)?;
+                p.groups.iter().position(|q| same(g, q))
+            })
+            .collect();
         let mut columns = vec![0.0; n * groups.len()];
-        for (g, col) in groups.iter().zip(columns.chunks_mut(n.max(1))) {
+        // The columns to solve, packed.
+        let fresh: Vec<usize> = (0..groups.len()).filter(|&g| taken[g].is_none()).collect();
+        let mut solve = vec![0.0; n * fresh.len()];
+        for (&g, col) in fresh.iter().zip(solve.chunks_mut(n.max(1))) {
+            let g = &groups[g];
             for k in 0..4 {
                 let i = g.nodes[k] as usize;
                 if !fixed[i] {
@@ -89,9 +127,19 @@ impl LowRank {
             }
         }
         if single {
-            factor.solve_many_single(&mut columns);
+            factor.solve_many_single(&mut solve);
         } else {
-            factor.solve_many(&mut columns);
+            factor.solve_many(&mut solve);
+        }
+        for (&g, col) in fresh.iter().zip(solve.chunks(n.max(1))) {
+            columns[g * n..(g + 1) * n].copy_from_slice(col);
+        }
+        if let Some(p) = prev {
+            for (g, t) in taken.iter().enumerate() {
+                if let Some(q) = *t {
+                    columns[g * n..(g + 1) * n].copy_from_slice(&p.columns[q * n..(q + 1) * n]);
+                }
+            }
         }
         // w_a^T B^-1 w_b per pair of groups, then per pair of terms times d_r . d_s.
         let wg = |a: &Group, b: usize| -> f64 {
@@ -119,6 +167,7 @@ impl LowRank {
             terms,
             columns,
             capacitance,
+            single,
         })
     }
 
@@ -174,6 +223,63 @@ impl LowRank {
         z: &mut [Vec3],
         force: Option<&mut Vec<Vec3>>,
     ) {
+        let dirs = self.directions(x, targets, z, force);
+        let n = self.n;
+        for (g, d) in dirs.iter().enumerate() {
+            if *d == Vec3::zeros() {
+                continue;
+            }
+            let col = &self.columns[g * n..(g + 1) * n];
+            for (zi, &c) in z.iter_mut().zip(col) {
+                *zi -= d * c;
+            }
+        }
+    }
+
+    /// [`LowRank::correct`] added to the iterate: `x += dx` (`dx` the corrected `z`), in
+    /// parallel over the rows, each row's operations those of `correct` followed by
+    /// `x[i] += z[i]` (the same bits); `z` is left as it was.
+    pub fn add_corrected(
+        &self,
+        x: &mut [Vec3],
+        targets: &[Vec3],
+        z: &[Vec3],
+        force: Option<&mut Vec<Vec3>>,
+    ) {
+        use rayon::prelude::*;
+        let n = self.n;
+        let dirs = self.directions(x, targets, z, force);
+        let used: Vec<(usize, Vec3)> = dirs
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| **d != Vec3::zeros())
+            .map(|(g, d)| (g, *d))
+            .collect();
+        x.par_chunks_mut(ROW_CHUNK)
+            .zip(z.par_chunks(ROW_CHUNK))
+            .enumerate()
+            .for_each(|(k, (xs, zs))| {
+                for (j, (xi, zi)) in xs.iter_mut().zip(zs).enumerate() {
+                    let i = k * ROW_CHUNK + j;
+                    let mut d = *zi;
+                    for (g, dir) in &used {
+                        d -= dir * self.columns[g * n + i];
+                    }
+                    *xi += d;
+                }
+            });
+    }
+
+    /// The constraint forces' and penalties' multipliers `mu` for `z` (see
+    /// [`LowRank::correct`]) summed per group into the direction `sum_r mu_r d_r`; with
+    /// `force`, writes the constraint forces there.
+    fn directions(
+        &self,
+        x: &[Vec3],
+        targets: &[Vec3],
+        z: &[Vec3],
+        force: Option<&mut Vec<Vec3>>,
+    ) -> Vec<Vec3> {
         let n = self.n;
         let q = DVector::from_iterator(
             self.terms.len(),
@@ -198,15 +304,6 @@ impl LowRank {
         for (t, m) in self.terms.iter().zip(mu.iter()) {
             dirs[t.group as usize] += t.dir * *m;
         }
-        for (g, d) in dirs.iter().enumerate() {
-            if *d == Vec3::zeros() {
-                continue;
-            }
-            let col = &self.columns[g * n..(g + 1) * n];
-            for (zi, &c) in z.iter_mut().zip(col) {
-                *zi -= d * c;
-            }
-        }
         if let Some(f) = force {
             f.clear();
             f.resize(n, Vec3::zeros());
@@ -219,8 +316,12 @@ impl LowRank {
                 }
             }
         }
+        dirs
     }
 }
+
+/// Rows per parallel task of [`LowRank::add_corrected`].
+const ROW_CHUNK: usize = 1024;
 
 #[cfg(test)]
 mod tests {
@@ -380,12 +481,53 @@ mod tests {
             let lr32 = LowRank::new(&chol, &fixed, groups.clone(), terms.clone(), true).unwrap();
             let mut dx32 = r.clone();
             chol.solve3(&mut dx32);
+            let mut z32 = dx32.clone();
             lr32.correct(&x, &targets, &mut dx32, None);
+            // Added to an iterate in parallel: the bits of `correct`, then `x + dx`.
+            let x1: Vec<Vec3> = (0..n).map(|_| unit(&mut rng)).collect();
+            let mut got = x1.clone();
+            let want_force = {
+                let mut f = Vec::new();
+                lr32.correct(&x1, &targets, &mut z32.clone(), Some(&mut f));
+                f
+            };
+            let mut got_force = Vec::new();
+            lr32.add_corrected(&mut got, &targets, &z32, Some(&mut got_force));
+            lr32.correct(&x1, &targets, &mut z32, None);
+            for i in 0..n {
+                prop_assert_eq!(got[i], x1[i] + z32[i]);
+            }
+            prop_assert_eq!(got_force, want_force);
             for i in 0..n {
                 for d in 0..3 {
                     prop_assert!((dx32[i][d] - want[3 * i + d]).abs() <= 1e-5 * scale,
                         "single: dx[{}][{}] = {} vs {}", i, d, dx32[i][d], want[3 * i + d]);
                 }
+            }
+            // A release round keeps some groups (and adds a new one): taken over from `lr32`,
+            // the same bits as solved afresh.
+            let mut sub_groups = Vec::new();
+            let mut sub_terms = Vec::new();
+            for (g, grp) in groups.iter().enumerate().filter(|(g, _)| g % 2 == seed as usize % 2) {
+                for t in terms.iter().filter(|t| t.group as usize == g) {
+                    sub_terms.push(Term { group: sub_groups.len() as u32, ..*t });
+                }
+                sub_groups.push(*grp);
+            }
+            let v = rng.random_range(0..n as u32);
+            sub_terms.push(Term { group: sub_groups.len() as u32, dir: unit(&mut rng), inv_k: 0.5 });
+            sub_groups.push(Group { nodes: [v, 0, 0, 0], weights: [1.0, 0.0, 0.0, 0.0] });
+            let fresh = LowRank::new(&chol, &fixed, sub_groups.clone(), sub_terms.clone(), true);
+            let reused = LowRank::reusing(&chol, &fixed, sub_groups, sub_terms, true, Some(&lr32));
+            prop_assert_eq!(fresh.is_some(), reused.is_some());
+            if let (Some(a), Some(b)) = (fresh, reused) {
+                prop_assert!(a.columns.iter().zip(&b.columns).all(|(p, q)| p.to_bits() == q.to_bits()));
+                let mut za = r.clone();
+                chol.solve3(&mut za);
+                let mut zb = za.clone();
+                a.correct(&x, &targets, &mut za, None);
+                b.correct(&x, &targets, &mut zb, None);
+                prop_assert!(za.iter().zip(&zb).all(|(p, q)| p == q));
             }
         }
     }

@@ -960,10 +960,7 @@ impl Projective {
             } else {
                 factor.solve_with(residual, b);
             }
-            lr.correct(x, problem.targets, b, force);
-            for (xi, d) in x.iter_mut().zip(b.iter()) {
-                *xi += d;
-            }
+            lr.add_corrected(x, problem.targets, b, force);
             return PcgResult {
                 iterations: 1,
                 relative_residual: 0.0,
@@ -1006,6 +1003,66 @@ impl Projective {
         r
     }
 
+    /// Whether [`Projective::global_step_extrapolated`] can take `problem`'s global step: a
+    /// direct one with the exact factor and no contact terms, solved in single precision.
+    pub fn fuses_extrapolation(problem: &StepProblem) -> bool {
+        problem.exact && SINGLE_PRECISION_INCREMENTS
+    }
+
+    /// [`Projective::global_step`] of a problem that [`Projective::fuses_extrapolation`]
+    /// (without constraint forces) followed by Chebyshev's extrapolation (Wang 2015), inside
+    /// the substitution's parallel parts where each row's increment is added: `save[i]` gets
+    /// the iterate `x[i]` before the step, and with `prev = Some((omega, p))` the new row is
+    /// `(x_hat[i] - p[i]) omega + p[i]` (`x_hat` the plain global step's), else `x_hat[i]`.
+    /// The same operations per row as the global step, a copy of `x` before it and the
+    /// extrapolation loop after it (the same bits), without those two sequential passes.
+    #[allow(clippy::too_many_arguments)]
+    pub fn global_step_extrapolated(
+        &self,
+        problem: &StepProblem,
+        rhs_const: &[Vec3],
+        factor: &ScalarCholesky,
+        x: &mut [Vec3],
+        work: &Workspace,
+        prev: Option<(f64, &[Vec3])>,
+        save: &mut [Vec3],
+    ) -> PcgResult {
+        assert!(Self::fuses_extrapolation(problem), "a direct global step");
+        assert_eq!(save.len(), x.len(), "a saved row per row");
+        assert!(
+            prev.is_none_or(|(_, p)| p.len() == x.len()),
+            "a row per row"
+        );
+        let targets = &work.targets;
+        let p = &self.pattern;
+        let saved = SavedRows(save.as_mut_ptr());
+        factor.add_increment_map(
+            |i, xs| {
+                if problem.filter[i] == Filter::Fixed {
+                    return Vec3::zeros();
+                }
+                let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
+                let ax = row_times(&p.cols[row.clone()], &problem.values[row], xs);
+                rhs_const[i] + self.gather(targets, i) - ax
+            },
+            x,
+            |i, old, new| {
+                // SAFETY: `i` < n = `save.len()` (asserted); each row is mapped once, so no
+                // two threads write the same row, and `save` is not read meanwhile.
+                unsafe { *saved.at(i) = old };
+                match prev {
+                    Some((omega, p)) => (new - p[i]) * omega + p[i],
+                    None => new,
+                }
+            },
+        );
+        PcgResult {
+            iterations: 1,
+            relative_residual: 0.0,
+            converged: true,
+        }
+    }
+
     /// The variational energy `E(x)` of the step (module docs) without contact terms.
     pub fn step_energy(&self, problem: &StepProblem, x: &[Vec3]) -> f64 {
         let inertial: f64 = (0..self.n)
@@ -1016,6 +1073,22 @@ impl Projective {
         self.mul_stiffness(&d, &mut ld);
         let damping = 0.5 * problem.damping * crate::sim::sparse::dot(&d, &ld);
         inertial + self.elastic_energy(x) + damping
+    }
+}
+
+/// The rows of [`Projective::global_step_extrapolated`]'s `save`, written from the two parts
+/// of a split substitution (distinct rows).
+#[derive(Clone, Copy)]
+struct SavedRows(*mut Vec3);
+// SAFETY: the parts write disjoint rows.
+unsafe impl Send for SavedRows {}
+// SAFETY: as above.
+unsafe impl Sync for SavedRows {}
+
+impl SavedRows {
+    /// Row `i` (a method, so closures capture the `Sync` wrapper, not the raw pointer).
+    fn at(self, i: usize) -> *mut Vec3 {
+        self.0.wrapping_add(i)
     }
 }
 
@@ -1221,6 +1294,107 @@ mod tests {
         fixed: Vec<bool>,
         rest: RestShape,
         triangles: Vec<[u32; 3]>,
+    }
+
+    /// The global step with Chebyshev's extrapolation inside the substitution
+    /// ([`Projective::global_step_extrapolated`]) against [`Projective::global_step`] followed
+    /// by the extrapolation loop: the same bits for the new iterate, and the saved rows are the
+    /// iterate before the step; without a previous iterate, the plain global step. Sheets with
+    /// a sequential and a split substitution, pools of one and two threads.
+    #[test]
+    fn extrapolated_global_step_gives_the_bits_of_step_then_extrapolation() {
+        use rand::{Rng, SeedableRng};
+        for (nx, ny) in [(4, 3), (40, 30)] {
+            let s = small(
+                nx,
+                ny,
+                11,
+                0.01,
+                Elastic {
+                    stretch: 300.0,
+                    shear: 30.0,
+                    bend: 1e-4,
+                },
+            );
+            let n = s.x0.len();
+            let values = s.system.system_values(&s.inertia, s.damping);
+            let mut chol = ScalarCholesky::new(s.system.pattern()).unwrap();
+            assert!(chol.factor(s.system.pattern(), &values, &s.fixed));
+            let filter: Vec<Filter> = s
+                .fixed
+                .iter()
+                .map(|&f| if f { Filter::Fixed } else { Filter::Free })
+                .collect();
+            let extra = vec![Vec3::zeros(); n];
+            let problem = StepProblem {
+                x0: &s.x0,
+                y: &s.y,
+                inertia: &s.inertia,
+                damping: s.damping,
+                contacts: None,
+                low_rank: None,
+                values: &values,
+                exact: true,
+                rhs_extra: &extra,
+                filter: &filter,
+                targets: &s.x0,
+            };
+            assert!(Projective::fuses_extrapolation(&problem));
+            let rhs = s.system.constant_rhs(&problem);
+            let x: Vec<Vec3> = (0..n)
+                .map(|i| if s.fixed[i] { s.x0[i] } else { s.y[i] })
+                .collect();
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+            let prev: Vec<Vec3> = x
+                .iter()
+                .map(|p| {
+                    p + Vec3::new(
+                        rng.random_range(-1e-3..1e-3),
+                        0.0,
+                        rng.random_range(-1e-3..1e-3),
+                    )
+                })
+                .collect();
+            let mut work = Workspace::default();
+            s.system.project(&x, &mut work.targets);
+            let settings = PcgSettings {
+                tolerance: 1e-12,
+                absolute: 0.0,
+                max_iterations: 10,
+            };
+            let omega = 1.7;
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    let mut plain = x.clone();
+                    s.system
+                        .global_step(&problem, &rhs, &chol, settings, &mut plain, None, &mut work);
+                    let want: Vec<Vec3> = (0..n)
+                        .map(|i| (plain[i] - prev[i]) * omega + prev[i])
+                        .collect();
+                    for (p, w) in [(Some((omega, &prev[..])), &want), (None, &plain)] {
+                        let mut got = x.clone();
+                        let mut save = vec![Vec3::zeros(); n];
+                        s.system.global_step_extrapolated(
+                            &problem, &rhs, &chol, &mut got, &work, p, &mut save,
+                        );
+                        for i in 0..n {
+                            for c in 0..3 {
+                                assert_eq!(
+                                    got[i][c].to_bits(),
+                                    w[i][c].to_bits(),
+                                    "{nx}x{ny}, row {i}"
+                                );
+                                assert_eq!(save[i][c].to_bits(), x[i][c].to_bits());
+                            }
+                        }
+                    }
+                });
+            }
+        }
     }
 
     fn small(nx: usize, ny: usize, seed: u64, amp: f64, elastic: Elastic) -> Small {

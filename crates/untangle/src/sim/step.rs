@@ -1121,6 +1121,8 @@ impl Simulator {
         let (mut prev, mut cur) = (Vec::new(), Vec::new());
         // The iterations run inside the pool (one hand-over to a worker thread per step instead
         // of one per parallel loop: under load a woken worker is often descheduled).
+        // The last release round's low-rank correction (its columns are reused).
+        let mut prev_lr: Option<low_rank::LowRank> = None;
         rayon::scope(|_| {
             'rounds: loop {
                 // The global system of this round: base matrix plus contact springs and friction,
@@ -1180,7 +1182,15 @@ impl Simulator {
                         let f = pd.factor.as_ref()?;
                         let (groups, lr_terms) =
                             low_rank_terms(&springs, &spring_k, &contacts, &friction);
-                        low_rank::LowRank::new(f, &self.pinned, groups, lr_terms, true)
+                        // A release round keeps most groups: their columns are taken over.
+                        low_rank::LowRank::reusing(
+                            f,
+                            &self.pinned,
+                            groups,
+                            lr_terms,
+                            true,
+                            prev_lr.as_ref(),
+                        )
                     })
                     .flatten();
                 // Otherwise the terms next to the factored matrix, for CG's products.
@@ -1256,7 +1266,10 @@ impl Simulator {
                     let direct = problem.exact || problem.low_rank.is_some();
                     let accelerate = p.projective_anderson > 0 && direct;
                     let chebyshev = !accelerate && p.projective_chebyshev > 0.0 && direct;
-                    if chebyshev {
+                    // Chebyshev's copy of the iterate and its extrapolation inside the global
+                    // step's substitution (same bits) when that is the plain direct step.
+                    let fused = chebyshev && Projective::fuses_extrapolation(&problem);
+                    if chebyshev && !fused {
                         cur.clone_from(&x);
                     }
                     if accelerate {
@@ -1280,31 +1293,47 @@ impl Simulator {
                     let check = !last
                         && releases < MAX_RELEASE_ROUNDS
                         && (!contacts.is_empty() || !springs.is_empty());
-                    let r = pd.system.global_step(
-                        &problem,
-                        &rhs_const,
-                        factor,
-                        settings,
-                        &mut x,
-                        // The constraint forces are read only at obstacle contacts (release
-                        // rule, friction bound of the next step): without any, no residual
-                        // product (the springs' release looks at the velocities).
-                        ((check || last) && !contacts.is_empty()).then_some(&mut force),
-                        &mut work,
-                    );
+                    // x = omega (x_hat - x_prev) + x_prev; the constrained components agree in
+                    // both, so the constraints stay satisfied.
                     if chebyshev && have_prev {
-                        // x = omega (x_hat - x_prev) + x_prev; the constrained components agree in
-                        // both, so the constraints stay satisfied.
                         let rho2 = p.projective_chebyshev * p.projective_chebyshev;
                         omega = if omega == 1.0 {
                             2.0 / (2.0 - rho2)
                         } else {
                             4.0 / (4.0 - rho2 * omega)
                         };
-                        for i in 0..n {
-                            x[i] = (x[i] - prev[i]) * omega + prev[i];
-                        }
                     }
+                    let r = if fused {
+                        cur.resize(n, Vec3::zeros());
+                        pd.system.global_step_extrapolated(
+                            &problem,
+                            &rhs_const,
+                            factor,
+                            &mut x,
+                            &work,
+                            have_prev.then_some((omega, &prev[..])),
+                            &mut cur,
+                        )
+                    } else {
+                        let r = pd.system.global_step(
+                            &problem,
+                            &rhs_const,
+                            factor,
+                            settings,
+                            &mut x,
+                            // The constraint forces are read only at obstacle contacts (release
+                            // rule, friction bound of the next step): without any, no residual
+                            // product (the springs' release looks at the velocities).
+                            ((check || last) && !contacts.is_empty()).then_some(&mut force),
+                            &mut work,
+                        );
+                        if chebyshev && have_prev {
+                            for i in 0..n {
+                                x[i] = (x[i] - prev[i]) * omega + prev[i];
+                            }
+                        }
+                        r
+                    };
                     if accelerate {
                         let last = result.iterations + 1 >= p.projective_iterations;
                         extrapolated = anderson.finish(&mut x, !last);
@@ -1340,6 +1369,7 @@ impl Simulator {
                         springs = keep_s;
                         if released {
                             releases += 1;
+                            prev_lr = lr;
                             continue 'rounds;
                         }
                     }
@@ -1446,9 +1476,11 @@ impl Simulator {
             let contacts = self
                 .contacts
                 .find(&self.x, v_pred, &free, &self.obstacles, h, policy);
+            // In parallel, in the resting pairs' order (rayon's collect keeps it).
             let pairs: Vec<([u32; 4], bool, f64)> = self
                 .resting
-                .iter()
+                .par_iter()
+                .with_min_len(256)
                 .filter_map(|pr| {
                     let (nodes, vt, c) = match pr.kind {
                         PairKind::VertexTriangle => {
