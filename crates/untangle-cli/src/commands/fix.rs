@@ -135,6 +135,20 @@ pub struct Args {
     /// (docs/cha-ko.md, "The simulator inside the loop").
     #[arg(long, default_value_t = ResolveParams::default().sim.zone_motion.soft_levels)]
     pub zone_soft_levels: u32,
+    /// Heavy subjects (ours, `ResolveParams::heavy_subjects`; 1 = off): the running
+    /// operations' subjects weigh this many times their mass in the collision handling only
+    /// (impulses and impact zones), so m-CCH takes less of a pull's motion back; which pairs
+    /// are kept apart is unchanged (docs/cha-ko.md, "Heavy subjects").
+    #[arg(long, default_value_t = ResolveParams::default().heavy_subjects)]
+    pub heavy_subjects: f64,
+    /// With `--heavy-subjects`: the subjects' fans (neighbours) are heavy too.
+    #[arg(long)]
+    pub heavy_fans: bool,
+    /// Thin red-green pairs at the subjects (ours, `ResolveParams::subject_rg_scale`; 1 =
+    /// off): red-green pairs whose red primitive has a running operation's subject keep this
+    /// fraction of epsilon_RG (at least epsilon).
+    #[arg(long, default_value_t = ResolveParams::default().subject_rg_scale)]
+    pub subject_rg_scale: f64,
     /// Levels revoked per step once nothing intersects (ours; 0, the default: as
     /// `--revoke-levels`; 200: everything at once, one step after the first clean step, but the
     /// output is left about twice as stretched). The loop's tail after the first clean step only revokes; m-CCH
@@ -196,6 +210,11 @@ impl Args {
         p.slit_stall = self.slit_stall;
         p.cha_ko.revoke_levels_per_step = self.revoke_levels;
         p.sim.zone_motion.soft_levels = self.zone_soft_levels;
+        p.heavy_subjects = self.heavy_subjects;
+        if self.heavy_fans {
+            p.heavy_scope = untangle::methods::cha_ko::subjects::HeavyScope::SubjectsAndFans;
+        }
+        p.subject_rg_scale = self.subject_rg_scale;
         p.cha_ko.revoke_levels_when_clean = self.revoke_levels_when_clean;
         p.cha_ko.revoke_levels_finished = self.revoke_levels_finished;
         p.cha_ko.hold_progress_steps = self.hold_progress;

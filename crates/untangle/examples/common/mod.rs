@@ -126,6 +126,25 @@ pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
     {
         p.cha_ko.eps = e;
     }
+    // CHAKO_HEAVY: the running operations' subjects' mass factor in the collision handling
+    // (`ResolveParams::heavy_subjects`, 1 = off); CHAKO_HEAVY_FANS=1 makes their fans heavy too.
+    if let Some(f) = std::env::var("CHAKO_HEAVY")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+    {
+        p.heavy_subjects = f;
+    }
+    // CHAKO_SUBJECT_RG: the subjects' red-green thickness as a fraction of epsilon_RG
+    // (`ResolveParams::subject_rg_scale`, 1 = off).
+    if let Some(f) = std::env::var("CHAKO_SUBJECT_RG")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+    {
+        p.subject_rg_scale = f;
+    }
+    if std::env::var("CHAKO_HEAVY_FANS").is_ok_and(|s| s == "1") {
+        p.heavy_scope = untangle::methods::cha_ko::subjects::HeavyScope::SubjectsAndFans;
+    }
 }
 
 /// The loop simulator's material and solver settings from the environment (each unset

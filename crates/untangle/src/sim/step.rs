@@ -310,6 +310,9 @@ pub struct Simulator {
     /// The last step's velocities as the implicit solve left them, before the collision
     /// handling (empty before the first step or with collisions off).
     solved_v: Vec<Vec3>,
+    /// Per vertex, a factor (>= 1) on its mass in the collision handling only (empty: 1 for
+    /// all); see [`Simulator::set_collision_mass_factors`].
+    collision_mass: Vec<f64>,
     steps: u64,
     time: f64,
 }
@@ -425,6 +428,7 @@ impl Simulator {
             dv_prev: vec![Vec3::zeros(); n],
             pd: None,
             solved_v: Vec::new(),
+            collision_mass: Vec::new(),
             steps: 0,
             time: 0.0,
         };
@@ -628,6 +632,34 @@ impl Simulator {
         } else {
             self.pin_targets[v as usize] = None;
         }
+        Ok(())
+    }
+
+    /// Makes vertices heavier in the collision handling only (ours, for Cha & Ko's loop): vertex
+    /// `i`'s inverse mass in the proximity impulses, CCD impulses and impact zones of the next
+    /// steps is divided by `factors[i]`, so a pair's impulse moves its other side more and a
+    /// zone's rigid motion follows the heavy vertices; the implicit solve keeps the true
+    /// masses. Every factor must be finite and at least 1; an empty vector restores the true
+    /// masses. The guarantee is unchanged: impulses and zones stop the same pairs whatever the
+    /// masses.
+    pub fn set_collision_mass_factors(&mut self, factors: Vec<f64>) -> Result<()> {
+        if !factors.is_empty() && factors.len() != self.x.len() {
+            return Err(Error::Parameter(format!(
+                "{} collision mass factors for {} vertices",
+                factors.len(),
+                self.x.len()
+            )));
+        }
+        if let Some(f) = factors.iter().find(|f| !(f.is_finite() && **f >= 1.0)) {
+            return Err(Error::Parameter(format!(
+                "collision mass factor {f} (must be finite and >= 1)"
+            )));
+        }
+        self.collision_mass = if factors.iter().all(|&f| f == 1.0) {
+            Vec::new()
+        } else {
+            factors
+        };
         Ok(())
     }
 
@@ -1558,6 +1590,17 @@ impl Simulator {
         // The solve's velocities, to report how far the collision handling moved the cloth.
         let solved = p.collisions.then(|| v.clone());
         let mut collisions = if p.collisions {
+            let heavy: Vec<f64>;
+            let inv_mass: &[f64] = if self.collision_mass.is_empty() {
+                &inv_mass
+            } else {
+                heavy = inv_mass
+                    .iter()
+                    .zip(&self.collision_mass)
+                    .map(|(m, f)| m / f)
+                    .collect();
+                &heavy
+            };
             let scene = Scene {
                 x0: &self.x,
                 h,
@@ -1565,7 +1608,7 @@ impl Simulator {
                 edges: &self.topology.edges,
                 hinge: &self.hinge,
                 obstacles: &self.obstacles,
-                inv_mass: &inv_mass,
+                inv_mass,
                 friction: p.friction,
                 ccd_ratio: p.ccd_ratio,
             };

@@ -36,6 +36,7 @@ pub mod schedule;
 pub mod seams;
 pub mod slit;
 pub mod state;
+pub mod subjects;
 pub mod tit;
 pub mod trial;
 

@@ -79,6 +79,11 @@ pub struct MchPolicy<'a> {
     pub eps_rg: f64,
     /// How edges with one red and one green end take part in edge-edge pairs.
     pub mixed_edges: MixedEdges,
+    /// Thin red-green pairs at the subjects (ours, off by default: `None`): with
+    /// `Some((subject, t))`, a red-green pair whose red primitive has a vertex flagged in
+    /// `subject` (the running operations' subjects) keeps `t` instead of `eps_rg` (use
+    /// `eps <= t <= eps_rg`), so the subject's own red-green pairs hold a pull back less.
+    pub thin_rg: Option<(&'a [bool], f64)>,
 }
 
 impl<'a> MchPolicy<'a> {
@@ -90,6 +95,22 @@ impl<'a> MchPolicy<'a> {
             eps,
             eps_rg,
             mixed_edges: MixedEdges::Red,
+            thin_rg: None,
+        }
+    }
+
+    /// The thickness of a red-green pair whose red primitive has the vertices `red_side`.
+    #[inline]
+    fn red_green_thickness(&self, red_side: &[u32]) -> f64 {
+        match self.thin_rg {
+            Some((subject, t))
+                if red_side
+                    .iter()
+                    .any(|&v| subject.get(v as usize).copied().unwrap_or(false)) =>
+            {
+                t
+            }
+            _ => self.eps_rg,
         }
     }
 
@@ -103,6 +124,14 @@ impl<'a> MchPolicy<'a> {
     /// Colour class of the edge pair `(e0, e1)` under [`MchPolicy::mixed_edges`].
     #[inline]
     fn edge_pair(&self, e0: u32, e1: u32) -> PairColour {
+        let (r0, r1) = self.edge_reds(e0, e1);
+        pair_colour(r0, r1)
+    }
+
+    /// Whether each edge of the pair `(e0, e1)` counts as red under
+    /// [`MchPolicy::mixed_edges`].
+    #[inline]
+    fn edge_reds(&self, e0: u32, e1: u32) -> (bool, bool) {
         let c = self.coloring;
         let (r0, r1) = (c.red_edge[e0 as usize], c.red_edge[e1 as usize]);
         let (r0, r1) = match self.mixed_edges {
@@ -116,7 +145,7 @@ impl<'a> MchPolicy<'a> {
                 }
             }
         };
-        pair_colour(r0, r1)
+        (r0, r1)
     }
 
     fn vertex_is_cloth(&self, v: u32) -> bool {
@@ -170,26 +199,109 @@ impl ContactPolicy for MchPolicy<'_> {
     /// Cloth vertex against cloth triangle (garment numbering = analysis numbering).
     #[inline]
     fn vertex_triangle(&self, vertex: u32, triangle: u32) -> Contact {
-        rule(
-            pair_colour(
-                self.coloring.red_vertex[vertex as usize],
-                self.coloring.red_triangle[triangle as usize],
-            ),
-            self.eps,
-            self.eps_rg,
-        )
+        let (rv, rt) = (
+            self.coloring.red_vertex[vertex as usize],
+            self.coloring.red_triangle[triangle as usize],
+        );
+        let colour = pair_colour(rv, rt);
+        if colour == PairColour::RedGreen && self.thin_rg.is_some() {
+            let t = if rv {
+                self.red_green_thickness(&[vertex])
+            } else {
+                self.red_green_thickness(&self.mesh.triangles[triangle as usize])
+            };
+            return Contact::Thickness(t);
+        }
+        rule(colour, self.eps, self.eps_rg)
     }
 
     /// Cloth edge against cloth edge (garment topology edge indices).
     #[inline]
     fn edge_edge(&self, edge_a: u32, edge_b: u32) -> Contact {
-        rule(self.edge_pair(edge_a, edge_b), self.eps, self.eps_rg)
+        let (ra, rb) = self.edge_reds(edge_a, edge_b);
+        let colour = pair_colour(ra, rb);
+        if colour == PairColour::RedGreen && self.thin_rg.is_some() {
+            let red = if ra { edge_a } else { edge_b };
+            let t = self.red_green_thickness(&self.mesh.topology.edges[red as usize]);
+            return Contact::Thickness(t);
+        }
+        rule(colour, self.eps, self.eps_rg)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::analysis::{AnalysisMesh, Coloring};
+
+    /// Thin red-green pairs at subjects, against a brute-force oracle over every vertex-triangle
+    /// and edge-edge pair of a 5 x 5 vertex grid with red vertices 6 (a subject) and 18 (not
+    /// one).
+    #[test]
+    fn thin_red_green_pairs_only_where_the_red_side_has_a_subject() {
+        use crate::analysis::ObjectKind;
+        let m = crate::scenes::handkerchief("grid", 4, 4, 1.0, 1.0, |p| {
+            crate::geom::Vec3::new(p.x, p.y, 0.0)
+        });
+        let (am, _) = AnalysisMesh::new(&[(&m, ObjectKind::Cloth)]).unwrap();
+        let red_vertex: Vec<bool> = (0..25).map(|v| v == 6 || v == 18).collect();
+        let edges = am.topology.edges.clone();
+        let red_edge: Vec<bool> = edges
+            .iter()
+            .map(|e| red_vertex[e[0] as usize] || red_vertex[e[1] as usize])
+            .collect();
+        let red_triangle: Vec<bool> = am
+            .triangles
+            .iter()
+            .map(|t| t.iter().any(|&v| red_vertex[v as usize]))
+            .collect();
+        let coloring = Coloring {
+            red_vertex: red_vertex.clone(),
+            red_edge: red_edge.clone(),
+            red_triangle: red_triangle.clone(),
+            ..Coloring::default()
+        };
+        let subject: Vec<bool> = (0..25).map(|v| v == 6 || v == 24).collect();
+        let (eps, eps_rg, thin) = (1e-6, 0.1, 0.03);
+        let mut p = MchPolicy::new(&am, &coloring, eps, eps_rg);
+        let plain = p.clone();
+        p.thin_rg = Some((&subject, thin));
+        let has_subject = |vs: &[u32]| vs.iter().any(|&v| subject[v as usize]);
+        let expect = |a_red: bool, b_red: bool, red_side_has_subject: bool| match (a_red, b_red) {
+            (true, true) => Contact::Skip,
+            (false, false) => Contact::Thickness(eps),
+            _ if red_side_has_subject => Contact::Thickness(thin),
+            _ => Contact::Thickness(eps_rg),
+        };
+        let (mut thin_pairs, mut rg_pairs) = (0, 0);
+        for v in 0..25u32 {
+            for (t, tri) in am.triangles.iter().enumerate() {
+                let (a, b) = (red_vertex[v as usize], red_triangle[t]);
+                let red_side = if a {
+                    has_subject(&[v])
+                } else {
+                    has_subject(tri)
+                };
+                let want = expect(a, b, red_side);
+                assert_eq!(p.vertex_triangle(v, t as u32), want, "v {v} t {t}");
+                assert_eq!(plain.vertex_triangle(v, t as u32), expect(a, b, false));
+                thin_pairs += (want == Contact::Thickness(thin)) as usize;
+                rg_pairs += (want == Contact::Thickness(eps_rg)) as usize;
+            }
+        }
+        for (i, e) in edges.iter().enumerate() {
+            for (j, f) in edges.iter().enumerate() {
+                let (a, b) = (red_edge[i], red_edge[j]);
+                let red_side = if a { has_subject(e) } else { has_subject(f) };
+                let want = expect(a, b, red_side);
+                assert_eq!(p.edge_edge(i as u32, j as u32), want, "e {i} f {j}");
+                assert_eq!(plain.edge_edge(i as u32, j as u32), expect(a, b, false));
+            }
+        }
+        // Both kinds occur: the subject's pairs thin, the other red vertex's at eps_RG
+        // (vertex 24 is a green subject: its pairs are never thin).
+        assert!(thin_pairs > 0 && rg_pairs > 0, "{thin_pairs} {rg_pairs}");
+    }
 
     #[test]
     fn rules_by_colour() {

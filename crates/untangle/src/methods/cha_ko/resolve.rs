@@ -15,6 +15,7 @@
 
 use super::adaptive::{AdaptiveIntegrator, IntegratorSchedule, IntegratorSwitch};
 use super::report::{FinesseStats, Stall, UvUpdateReport};
+use super::subjects::{collision_mass_factors, subject_flags, HeavyScope};
 use super::trial::{trial_step, BlockHistory, TrialReport};
 use super::{regionless, slit, ChaKo, Params};
 use crate::analysis::{analyze_with, Analysis, AnalysisMesh, Coloring};
@@ -58,6 +59,16 @@ pub struct ResolveParams {
     /// intersecting pairs (default 10; 0: as soon as a slit is seen with no vertex red, which
     /// resolves CROSS sooner but gives the exploded handkerchief a median of 119 steps).
     pub slit_stall: usize,
+    /// Heavy subjects (ours, [`super::subjects`]; 1 = off, the default): the mass factor, in the
+    /// simulator's collision handling only, of the vertices of running operations that
+    /// `heavy_scope` selects, so that CCD impulses and impact zones take less of a pull back.
+    pub heavy_subjects: f64,
+    /// Which vertices `heavy_subjects` makes heavy.
+    pub heavy_scope: HeavyScope,
+    /// Thin red-green pairs at the subjects (ours, [`super::subjects`]; 1 = off, the default):
+    /// red-green pairs whose red primitive has a running operation's subject keep this
+    /// fraction of `epsilon_RG` (never below `epsilon`); `epsilon_RG` itself is unchanged.
+    pub subject_rg_scale: f64,
     /// Analysis options. By default BLI paths colour their cone regions red (Wicke's heuristic),
     /// which goes beyond the paper (Cha & Ko leave BLI out): their vertices are then pulled like
     /// any red region. With `bli_regions_red = false` a BLI-only tanglement is reported as a
@@ -102,6 +113,9 @@ impl Default for ResolveParams {
             regionless_after: 0,
             slit_ridges: true,
             slit_stall: 10,
+            heavy_subjects: 1.0,
+            heavy_scope: HeavyScope::Subjects,
+            subject_rg_scale: 1.0,
             analysis: crate::analysis::Options {
                 bli_regions_red: true,
             },
@@ -354,7 +368,25 @@ impl Resolver {
             self.sim.set_rest_uv(self.chako.current_uv())?;
         }
         let t2 = Instant::now();
-        let policy = self.chako.contact_policy(&self.am, &a);
+        if self.params.heavy_subjects != 1.0 {
+            let n = self.sim.positions().len();
+            let f = collision_mass_factors(
+                self.chako.operations(),
+                &self.chako.garment().topology,
+                n,
+                self.params.heavy_subjects,
+                self.params.heavy_scope,
+            );
+            self.sim.set_collision_mass_factors(f)?;
+        }
+        let subjects: Vec<bool>;
+        let mut policy = self.chako.contact_policy(&self.am, &a);
+        if self.params.subject_rg_scale != 1.0 {
+            subjects = subject_flags(self.chako.operations(), self.sim.positions().len());
+            let t =
+                (self.chako.eps_rg() * self.params.subject_rg_scale).max(self.chako.params().eps);
+            policy.thin_rg = Some((&subjects, t));
+        }
         let (sr, trial) = if self.params.cha_ko.trial_retries > 0 && !a.is_clean() {
             let t = trial_step(
                 &mut self.sim,
