@@ -8,6 +8,7 @@
 //! near the root and return results in a fixed order, so the output is identical for any thread
 //! count.
 
+use super::lanes::{self, Block, BLOCK};
 use crate::geom::Aabb;
 
 /// Most primitives per leaf of [`Bvh::build`].
@@ -32,12 +33,24 @@ pub(super) struct Node {
     pub(super) size: u32,
     /// First slot below (the subtree holds slots `first..first + size`).
     first: u32,
+    /// Leaf of at most [`BLOCK`] primitives: index of its boxes in [`Bvh::blocks`]; else
+    /// [`NO_BLOCK`].
+    pub(super) block: u32,
 }
+
+/// [`Node::block`] of inner nodes and of leaves too large for a block.
+const NO_BLOCK: u32 = u32::MAX;
 
 impl Node {
     #[inline]
     pub(super) fn is_leaf(&self) -> bool {
         self.count > 0
+    }
+
+    /// A leaf's slots.
+    #[inline]
+    fn slots(&self) -> std::ops::Range<usize> {
+        self.start as usize..(self.start + self.count) as usize
     }
 }
 
@@ -49,6 +62,12 @@ pub struct Bvh {
     pub(super) order: Vec<u32>,
     /// Box of each leaf slot (copied for locality; updated by `refit`).
     pub(super) slot_aabbs: Vec<Aabb>,
+    /// The slot boxes of each leaf of at most [`BLOCK`] primitives again, as coordinate rows for
+    /// the leaves' block tests (`Node::block`; kept equal to `slot_aabbs` by every build and
+    /// refit).
+    pub(super) blocks: Vec<Block>,
+    /// The leaf node of each block.
+    block_leaf: Vec<u32>,
     /// Distinct for every build (0: never built); kept by refits and clones, which keep the
     /// tree's shape (what a [`super::front::Front`] depends on).
     pub(super) shape_id: u64,
@@ -99,10 +118,23 @@ impl Bvh {
         let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
         let order: Vec<u32> = keyed.iter().map(|k| k.1).collect();
         let slot_aabbs: Vec<Aabb> = order.iter().map(|&i| aabbs[i as usize]).collect();
-        let nodes = build_subtree(&codes, &slot_aabbs, 0, 0, leaf_size);
+        let mut nodes = build_subtree(&codes, &slot_aabbs, 0, 0, leaf_size);
+        // Blocks in pre-order of their leaves (which is slot order).
+        let leaves = nodes.len() / 2 + 1;
+        let mut blocks = Vec::with_capacity(leaves);
+        let mut block_leaf = Vec::with_capacity(leaves);
+        for (i, n) in nodes.iter_mut().enumerate() {
+            if n.is_leaf() && n.count as usize <= BLOCK {
+                n.block = blocks.len() as u32;
+                blocks.push(Block::new(&slot_aabbs[n.slots()]));
+                block_leaf.push(i as u32);
+            }
+        }
         Bvh {
             nodes,
             order,
+            blocks,
+            block_leaf,
             slot_aabbs,
             shape_id: SHAPES.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
@@ -136,6 +168,12 @@ impl Bvh {
             .with_min_len(4096)
             .zip(self.order.par_iter())
             .for_each(|(slot, &p)| *slot = aabbs[p as usize]);
+        let (nodes, slots) = (&self.nodes, &self.slot_aabbs);
+        self.blocks
+            .par_iter_mut()
+            .with_min_len(1024)
+            .zip(self.block_leaf.par_iter())
+            .for_each(|(b, &leaf)| b.set(&slots[nodes[leaf as usize].slots()]));
         if !self.nodes.is_empty() {
             let cutoff = par_cutoff().saturating_mul(4);
             refit_subtree(&mut self.nodes, 0, &self.slot_aabbs, cutoff);
@@ -166,7 +204,13 @@ impl Bvh {
             dirty.push(count);
         }
         if count > 0 && !self.nodes.is_empty() {
-            refit_dirty(&mut self.nodes, 0, &self.slot_aabbs, &dirty);
+            refit_dirty(
+                &mut self.nodes,
+                0,
+                &self.slot_aabbs,
+                &mut self.blocks,
+                &dirty,
+            );
         }
     }
 
@@ -254,6 +298,11 @@ impl Bvh {
         out: &mut Vec<T>,
     ) {
         let s = n.start as usize;
+        if n.block != NO_BLOCK {
+            let bits = lanes::self_block(&self.blocks[n.block as usize], n.count as usize);
+            visit_bits(bits, s, s, visit, out);
+            return;
+        }
         let slots = &self.slot_aabbs[s..s + n.count as usize];
         for (di, bi) in slots.iter().enumerate() {
             for (dj, bj) in slots[di + 1..].iter().enumerate() {
@@ -276,6 +325,15 @@ impl Bvh {
         out: &mut Vec<T>,
     ) {
         let (sa, sb) = (na.start as usize, nb.start as usize);
+        if na.block != NO_BLOCK && nb.block != NO_BLOCK {
+            let (ba, bb) = (
+                &self.blocks[na.block as usize],
+                &other.blocks[nb.block as usize],
+            );
+            let bits = lanes::cross_block(ba, na.count as usize, &nb.aabb, bb, nb.count as usize);
+            visit_bits(bits, sa, sb, visit, out);
+            return;
+        }
         let boxes_b = &other.slot_aabbs[sb..sb + nb.count as usize];
         for (di, bi) in self.slot_aabbs[sa..sa + na.count as usize]
             .iter()
@@ -436,9 +494,18 @@ impl Bvh {
                 continue;
             }
             if n.is_leaf() {
-                for i in n.start..n.start + n.count {
-                    if self.slot_aabbs[i as usize].overlaps(query) {
-                        visit(self.order[i as usize]);
+                let (s, c) = (n.start as usize, n.count as usize);
+                if n.block != NO_BLOCK {
+                    let mut bits = lanes::row_block(query, &self.blocks[n.block as usize], c);
+                    while bits != 0 {
+                        visit(self.order[s + bits.trailing_zeros() as usize]);
+                        bits &= bits - 1;
+                    }
+                    continue;
+                }
+                for i in s..s + c {
+                    if self.slot_aabbs[i].overlaps(query) {
+                        visit(self.order[i]);
                     }
                 }
             } else {
@@ -447,6 +514,23 @@ impl Bvh {
                 sp += 2;
             }
         }
+    }
+}
+
+/// Calls `visit(a + i, b + j, out)` for every bit `BLOCK * i + j` of a block test's `bits`, in
+/// increasing order (slot order of the first block, then of the second).
+#[inline(always)]
+fn visit_bits<T, F: Fn(u32, u32, &mut Vec<T>)>(
+    mut bits: u64,
+    a: usize,
+    b: usize,
+    visit: &F,
+    out: &mut Vec<T>,
+) {
+    while bits != 0 {
+        let k = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        visit((a + k / BLOCK) as u32, (b + k % BLOCK) as u32, out);
     }
 }
 
@@ -506,18 +590,27 @@ fn refit_subtree(nodes: &mut [Node], offset: usize, slots: &[Aabb], cutoff: u32)
 
 /// [`refit_subtree`] (sequential) of only the subtrees with a dirty slot (`dirty[s]`: dirty
 /// slots before slot `s`); the others keep their boxes. Returns the subtree's box.
-fn refit_dirty(nodes: &mut [Node], offset: usize, slots: &[Aabb], dirty: &[u32]) -> Aabb {
+fn refit_dirty(
+    nodes: &mut [Node],
+    offset: usize,
+    slots: &[Aabb],
+    blocks: &mut [Block],
+    dirty: &[u32],
+) -> Aabb {
     let n = nodes[0];
     if dirty[(n.first + n.size) as usize] == dirty[n.first as usize] {
         return n.aabb;
     }
     let b = if n.is_leaf() {
+        if n.block != NO_BLOCK {
+            blocks[n.block as usize].set(&slots[n.slots()]);
+        }
         leaf_box(&n, slots)
     } else {
         let (l, r) = (n.start as usize - offset, n.right as usize - offset);
         let (left, right) = nodes[l..].split_at_mut(r - l);
-        let bl = refit_dirty(left, offset + l, slots, dirty);
-        let br = refit_dirty(right, offset + r, slots, dirty);
+        let bl = refit_dirty(left, offset + l, slots, blocks, dirty);
+        let br = refit_dirty(right, offset + r, slots, blocks, dirty);
         bl.union(&br)
     };
     set_box(&mut nodes[0], b)
@@ -627,6 +720,7 @@ fn build_subtree(
             right: 1 + nl,
             size,
             first: offset,
+            block: NO_BLOCK,
         });
         shift(&mut left, 1);
         nodes.extend(left);
@@ -661,6 +755,7 @@ fn build_sequential(
             right: 0,
             size,
             first: offset,
+            block: NO_BLOCK,
         });
         return idx;
     }
@@ -672,6 +767,7 @@ fn build_sequential(
         right: 0,
         size,
         first: offset,
+        block: NO_BLOCK,
     });
     let m = split_point(codes);
     let l = build_sequential(nodes, &codes[..m], &boxes[..m], offset, leaf_size);

@@ -33,6 +33,9 @@ pub struct Front {
     /// Node pairs `(a, b)` (node of the first tree, node of the second); in a self front,
     /// `(a, a)` stands for the pairs within leaf `a`.
     entries: Vec<(u32, u32)>,
+    /// Number of values the last traversal returned (kept across rebuilds): the next one
+    /// reserves room for about as many, instead of growing its buffers by copying.
+    found: usize,
 }
 
 impl Front {
@@ -87,7 +90,7 @@ impl Bvh {
             return Vec::new();
         }
         let acc = if front.shapes == shapes && !front.entries.is_empty() {
-            from_entries(&front.entries, |&(a, b), acc: &mut Acc<T>| {
+            from_entries(&front.entries, front.found, |&(a, b), acc: &mut Acc<T>| {
                 if a == b {
                     self.leaf_self(&self.nodes[a as usize], &visit, &mut acc.out);
                     acc.front.push((a, a));
@@ -97,11 +100,14 @@ impl Bvh {
             })
         } else {
             let mut acc = Acc::new();
+            acc.out.reserve(room(front.found));
+            acc.front.reserve(room(front.entries.len()));
             self.self_full(0, par_cutoff(), &visit, &mut acc);
             acc
         };
         front.shapes = shapes;
         front.entries = acc.front;
+        front.found = acc.out.len();
         acc.out
     }
 
@@ -121,16 +127,19 @@ impl Bvh {
             return Vec::new();
         }
         let acc = if front.shapes == shapes && !front.entries.is_empty() {
-            from_entries(&front.entries, |&(a, b), acc: &mut Acc<T>| {
+            from_entries(&front.entries, front.found, |&(a, b), acc: &mut Acc<T>| {
                 self.cross_entry(other, a as usize, b as usize, u32::MAX, &visit, acc);
             })
         } else {
             let mut acc = Acc::new();
+            acc.out.reserve(room(front.found));
+            acc.front.reserve(room(front.entries.len()));
             self.cross_entry(other, 0, 0, par_cutoff(), &visit, &mut acc);
             acc
         };
         front.shapes = shapes;
         front.entries = acc.front;
+        front.found = acc.out.len();
         acc.out
     }
 
@@ -217,15 +226,25 @@ impl Bvh {
     }
 }
 
+/// Room for the values of a traversal when the last one found `found`: an eighth more (the
+/// buffers then rarely grow).
+fn room(found: usize) -> usize {
+    found + found / 8
+}
+
 /// Runs `step` over the front `entries` (in chunks in parallel when there are several worker
-/// threads) and concatenates the results in entry order.
+/// threads) and concatenates the results in entry order; the last traversal from these entries
+/// found `found` values (room is reserved for a share of them per chunk).
 fn from_entries<T: Send>(
     entries: &[(u32, u32)],
+    found: usize,
     step: impl Fn(&(u32, u32), &mut Acc<T>) + Sync,
 ) -> Acc<T> {
     let run = |chunk: &[(u32, u32)]| {
         let mut acc = Acc::new();
-        acc.front.reserve(chunk.len());
+        acc.front.reserve(room(chunk.len()));
+        acc.out
+            .reserve(room(found).saturating_mul(chunk.len()) / entries.len());
         for e in chunk {
             step(e, &mut acc);
         }

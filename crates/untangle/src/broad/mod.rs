@@ -1,10 +1,12 @@
 //! Broad phase: which primitives' boxes overlap. A bounding volume hierarchy with refit (for
 //! meshes that move every step) and parallel, deterministic self- and cross-traversal; a sweep
 //! and prune along x for small, dense sets (self-overlaps only); traversal fronts that let the
-//! next traversal of refitted hierarchies start where the last one stopped.
+//! next traversal of refitted hierarchies start where the last one stopped; the leaves' box
+//! tests eight boxes against eight at once on coordinate arrays.
 
 pub mod bvh;
 pub mod front;
+pub mod lanes;
 pub mod sweep;
 
 pub use bvh::Bvh;

@@ -414,7 +414,15 @@ impl BroadPhase {
                         }),
                 );
             }
-            crate::radix::sort_by_key(&mut keys, |k| *k);
+            // By vertex, then by (kind, triangle) ranked cloth triangles first, then obstacle
+            // triangles: the order of the keys, by two counting sorts.
+            let (nt, no) = (scene.triangles.len(), obs.triangles.len());
+            crate::radix::sort_by_bucket_then_key(
+                &mut keys,
+                (n, nt + no),
+                |&k| (k >> 33) as u32,
+                |&k| k as u32 + ((k >> 32) & 1) as u32 * nt as u32,
+            );
             keys.iter()
                 .map(|&k| Pair {
                     kind: if k & (1 << 32) == 0 {
