@@ -394,19 +394,7 @@ impl Layout {
         rhs: impl Fn(usize) -> [f32; 4] + Sync,
         emit: impl Fn(usize, [f32; 4]) + Sync,
     ) {
-        assert_eq!(x.len(), self.fwd.len(), "one row per matrix row");
-        assert!(
-            self.nodes
-                .last()
-                .is_none_or(|s| s.val + (s.size + s.m) * s.size <= l.len()),
-            "factor values of the layout"
-        );
-        assert!(
-            self.nodes
-                .iter()
-                .all(|s| s.tval == usize::MAX || s.tval + row_stride(s.size) * s.m <= l.len()),
-            "row-major copies of the layout"
-        );
+        self.assert_fits(l, x);
         let Some(split) = &self.split else {
             let fwd = &self.fwd;
             x.par_chunks_mut(RHS_CHUNK).enumerate().for_each(|(c, xs)| {
@@ -475,6 +463,24 @@ impl Layout {
         }
     }
 
+    /// The substitutions' preconditions (their unsafe row and value accesses rely on them): a
+    /// row of `x` per matrix row, and `l` holding every supernode's values and row-major copy.
+    fn assert_fits(&self, l: &[f32], x: &[[f32; 4]]) {
+        assert_eq!(x.len(), self.fwd.len(), "one row per matrix row");
+        assert!(
+            self.nodes
+                .last()
+                .is_none_or(|s| s.val + (s.size + s.m) * s.size <= l.len()),
+            "factor values of the layout"
+        );
+        assert!(
+            self.nodes
+                .iter()
+                .all(|s| s.tval == usize::MAX || s.tval + row_stride(s.size) * s.m <= l.len()),
+            "row-major copies of the layout"
+        );
+    }
+
     /// [`Layout::solve`] for a right-hand side that is zero outside the original rows `rows`
     /// (`rhs` is asked for those only; repeats are harmless): the forward substitution runs only
     /// over the supernodes holding such a row and their ancestors (the others would subtract
@@ -491,19 +497,7 @@ impl Layout {
         rhs: impl Fn(usize) -> [f32; 4],
         emit: impl Fn(usize, [f32; 4]) + Sync,
     ) {
-        assert_eq!(x.len(), self.fwd.len(), "one row per matrix row");
-        assert!(
-            self.nodes
-                .last()
-                .is_none_or(|s| s.val + (s.size + s.m) * s.size <= l.len()),
-            "factor values of the layout"
-        );
-        assert!(
-            self.nodes
-                .iter()
-                .all(|s| s.tval == usize::MAX || s.tval + row_stride(s.size) * s.m <= l.len()),
-            "row-major copies of the layout"
-        );
+        self.assert_fits(l, x);
         x.fill([0.0; 4]);
         marked.clear();
         marked.resize(self.nodes.len(), false);

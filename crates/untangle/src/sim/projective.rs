@@ -673,6 +673,26 @@ impl Projective {
         acc
     }
 
+    /// Row `i` of the global step's residual `rhs - A x` in double precision (zero on fixed
+    /// rows, whose targets the iterate already holds): the constant right-hand side, the local
+    /// step's share [`Projective::gather`], minus the row of the step matrix times `xs`.
+    fn residual_row(
+        &self,
+        problem: &StepProblem,
+        rhs_const: &[Vec3],
+        targets: &[[Vec3; 3]],
+        i: usize,
+        xs: &[Vec3],
+    ) -> Vec3 {
+        if problem.filter[i] == Filter::Fixed {
+            return Vec3::zeros();
+        }
+        let p = &self.pattern;
+        let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
+        let ax = row_times(&p.cols[row.clone()], &problem.values[row], xs);
+        rhs_const[i] + self.gather(targets, i) - ax
+    }
+
     /// The elastic energy at `x`: membrane (distance of every triangle's gradient to the two
     /// constraint sets, computed from its singular values) plus bending.
     pub fn elastic_energy(&self, x: &[Vec3]) -> f64 {
@@ -875,16 +895,8 @@ impl Projective {
                 // residual `rhs - A x` per free row in double precision, evaluated while it is
                 // written into the solver's buffer, then one single-precision solve.
                 // The increment is added to `x` inside the solve's parallel parts.
-                let p = &self.pattern;
                 factor.add_increment_with(
-                    |i, xs| {
-                        if problem.filter[i] == Filter::Fixed {
-                            return Vec3::zeros();
-                        }
-                        let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
-                        let ax = row_times(&p.cols[row.clone()], &problem.values[row], xs);
-                        rhs_const[i] + self.gather(targets, i) - ax
-                    },
+                    |i, xs| self.residual_row(problem, rhs_const, targets, i, xs),
                     x,
                 );
                 return PcgResult {
@@ -1034,17 +1046,9 @@ impl Projective {
             "a row per row"
         );
         let targets = &work.targets;
-        let p = &self.pattern;
         let saved = SavedRows(save.as_mut_ptr());
         factor.add_increment_map(
-            |i, xs| {
-                if problem.filter[i] == Filter::Fixed {
-                    return Vec3::zeros();
-                }
-                let row = p.offsets[i] as usize..p.offsets[i + 1] as usize;
-                let ax = row_times(&p.cols[row.clone()], &problem.values[row], xs);
-                rhs_const[i] + self.gather(targets, i) - ax
-            },
+            |i, xs| self.residual_row(problem, rhs_const, targets, i, xs),
             x,
             |i, old, new| {
                 // SAFETY: `i` < n = `save.len()` (asserted); each row is mapped once, so no
