@@ -183,53 +183,25 @@ const SPLIT_MIN_WORK: usize = 20_000;
 /// Per-supernode overhead of a substitution step, in factor entries (for the schedule only).
 const NODE_COST: usize = 8;
 
-/// A raw pointer to the rows of the iterate or a log, shared by the two parts of a split
-/// substitution (which write disjoint rows).
+/// A raw pointer to rows (of the iterate, a log, a solution or its saved copy) written from
+/// the two parts of a split substitution, which access disjoint rows (see [`Split`]): every
+/// user promises that no two threads touch the same row at once.
 #[derive(Clone, Copy)]
-struct Rows(*mut [f32; 4]);
+pub(crate) struct DisjointRows<T>(pub(crate) *mut T);
 // SAFETY: the two parts of a split substitution access disjoint rows (see `Split`).
-unsafe impl Send for Rows {}
+unsafe impl<T> Send for DisjointRows<T> {}
 // SAFETY: as above.
-unsafe impl Sync for Rows {}
+unsafe impl<T> Sync for DisjointRows<T> {}
 
-impl Rows {
+impl<T> DisjointRows<T> {
     /// Row `k` (a method, so closures capture the `Sync` wrapper, not the raw pointer).
-    fn at(self, k: usize) -> *mut [f32; 4] {
+    pub(crate) fn at(self, k: usize) -> *mut T {
         self.0.wrapping_add(k)
     }
 }
 
-/// A raw pointer to the solution rows of [`ScalarCholesky::add_increment_with`], written by the
-/// two parts of a split substitution (distinct rows).
-#[derive(Clone, Copy)]
-struct OutRows(*mut Vec3);
-// SAFETY: the parts write disjoint rows (see `Layout::solve`).
-unsafe impl Send for OutRows {}
-// SAFETY: as above.
-unsafe impl Sync for OutRows {}
-
-impl OutRows {
-    /// Row `i` (a method, so closures capture the `Sync` wrapper, not the raw pointer).
-    fn at(self, i: usize) -> *mut Vec3 {
-        self.0.wrapping_add(i)
-    }
-}
-
-/// A raw pointer to the column-major columns of [`ScalarCholesky::solve_many_single`], written
-/// row by row from the two parts of a split backward substitution (distinct rows).
-#[derive(Clone, Copy)]
-struct OutCols(*mut f64);
-// SAFETY: the parts write disjoint rows.
-unsafe impl Send for OutCols {}
-// SAFETY: as above.
-unsafe impl Sync for OutCols {}
-
-impl OutCols {
-    /// Entry `k` (a method, so closures capture the `Sync` wrapper, not the raw pointer).
-    fn at(self, k: usize) -> *mut f64 {
-        self.0.wrapping_add(k)
-    }
-}
+/// The rows of the iterate or a log of a substitution.
+type Rows = DisjointRows<[f32; 4]>;
 
 /// One phase of a (split) substitution, see [`Split`].
 #[derive(Clone, Copy)]
@@ -402,7 +374,7 @@ impl Layout {
                     *o = rhs(fwd[c * RHS_CHUNK + k] as usize);
                 }
             });
-            let xp = Rows(x.as_mut_ptr());
+            let xp = DisjointRows(x.as_mut_ptr());
             // SAFETY: `x` has a row per matrix row (asserted), one thread.
             unsafe { self.run(l, xp, Phase::All) };
             for (xi, &f) in x.iter().zip(fwd) {
@@ -410,7 +382,7 @@ impl Layout {
             }
             return;
         };
-        let xp = Rows(x.as_mut_ptr());
+        let xp = DisjointRows(x.as_mut_ptr());
         // The rows of part `p`: written (rhs) before its forward phase, read (emit) after its
         // backward phase; the parts' row sets are disjoint and cover all rows.
         let fill = |p: usize| {
@@ -433,7 +405,10 @@ impl Layout {
         for (log, &len) in logs.iter_mut().zip(&split.log_len) {
             log.resize(len, [0.0; 4]);
         }
-        let lp = [Rows(logs[0].as_mut_ptr()), Rows(logs[1].as_mut_ptr())];
+        let lp = [
+            DisjointRows(logs[0].as_mut_ptr()),
+            DisjointRows(logs[1].as_mut_ptr()),
+        ];
         // SAFETY: `x` has a row per matrix row and the logs their parts' lengths; the two parts
         // write disjoint rows and logs and read only rows no other phase running beside them
         // writes (see `Split`).
@@ -510,7 +485,7 @@ impl Layout {
                 s = self.parent[s as usize];
             }
         }
-        let xp = Rows(x.as_mut_ptr());
+        let xp = DisjointRows(x.as_mut_ptr());
         // SAFETY: `x` has a row per matrix row (asserted); the forward phase runs on this
         // thread alone, the backward phases as in `Layout::solve` (the parts write disjoint rows).
         unsafe {
@@ -1712,7 +1687,7 @@ impl ScalarCholesky {
             let mut guard = scratch(&self.lanes, Default::default);
             let (x, logs) = &mut *guard;
             x.resize(n, [0.0; 4]);
-            let op = OutRows(out.as_mut_ptr());
+            let op = DisjointRows::<Vec3>(out.as_mut_ptr());
             // SAFETY: `out` has `n` rows (asserted) and outlives the solve; `rhs` reads it only
             // while no row is written: `Layout::solve` calls `emit` (the only writes) after
             // every `rhs` call has returned, once per row, and on distinct rows when from two
@@ -1841,7 +1816,7 @@ impl ScalarCholesky {
                 let cs = &mut cols[c0 * n..(c0 + m) * n];
                 rows.clear();
                 rows.extend((0..n).filter(|&i| (0..m).any(|j| cs[j * n + i].to_bits() != 0)));
-                let out = OutCols(cs.as_mut_ptr());
+                let out = DisjointRows::<f64>(cs.as_mut_ptr());
                 // SAFETY: `j < m`, `i < n`: inside `cs`; read only before any row is emitted.
                 let lane = |j: usize, i: usize| {
                     if j < m {
@@ -2316,7 +2291,9 @@ mod tests {
             // The oracle: the plain sequential substitution, one row's four lanes at a time
             // (not the 8-wide AVX loops the solve uses when the CPU has AVX).
             // SAFETY: a row per matrix row, one thread.
-            unsafe { layout.run_lanes::<false>(&chol.factor32, Rows(x.as_mut_ptr()), Phase::All) };
+            unsafe {
+                layout.run_lanes::<false>(&chol.factor32, DisjointRows(x.as_mut_ptr()), Phase::All)
+            };
             let mut want = vec![Vec3::zeros(); n];
             for (xi, &f) in x.iter().zip(&layout.fwd) {
                 want[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);

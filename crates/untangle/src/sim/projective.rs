@@ -41,7 +41,7 @@
 use nalgebra::Matrix3x2;
 use rayon::prelude::*;
 
-use super::cholesky::ScalarCholesky;
+use super::cholesky::{DisjointRows, ScalarCholesky};
 use super::forces::stretch::TriangleRest;
 use super::low_rank::LowRank;
 use super::pcg::{self, Filter, PcgResult, PcgSettings};
@@ -1046,7 +1046,7 @@ impl Projective {
             "a row per row"
         );
         let targets = &work.targets;
-        let saved = SavedRows(save.as_mut_ptr());
+        let saved = DisjointRows(save.as_mut_ptr());
         factor.add_increment_map(
             |i, xs| self.residual_row(problem, rhs_const, targets, i, xs),
             x,
@@ -1077,22 +1077,6 @@ impl Projective {
         self.mul_stiffness(&d, &mut ld);
         let damping = 0.5 * problem.damping * crate::sim::sparse::dot(&d, &ld);
         inertial + self.elastic_energy(x) + damping
-    }
-}
-
-/// The rows of [`Projective::global_step_extrapolated`]'s `save`, written from the two parts
-/// of a split substitution (distinct rows).
-#[derive(Clone, Copy)]
-struct SavedRows(*mut Vec3);
-// SAFETY: the parts write disjoint rows.
-unsafe impl Send for SavedRows {}
-// SAFETY: as above.
-unsafe impl Sync for SavedRows {}
-
-impl SavedRows {
-    /// Row `i` (a method, so closures capture the `Sync` wrapper, not the raw pointer).
-    fn at(self, i: usize) -> *mut Vec3 {
-        self.0.wrapping_add(i)
     }
 }
 
