@@ -39,6 +39,16 @@ struct Checked {
     quits: usize,
 }
 
+impl Checked {
+    /// Steps in which the impact-zone fail-safe ran.
+    fn zone_steps(&self) -> usize {
+        self.reports
+            .iter()
+            .filter(|r| r.collisions.impact_zones > 0)
+            .count()
+    }
+}
+
 /// Runs `steps` steps, calling `before(sim, k)` before step k, and checks the cloth (and the
 /// obstacles) with the intersection analysis after every step.
 fn run_checked(
@@ -127,10 +137,7 @@ fn falling_sheet_stays_clean(params: SimParams) {
         "folding sheet: {} proximity impulses, {} CCD impulses, {} zone steps, {} quits",
         contacts,
         impulses,
-        c.reports
-            .iter()
-            .filter(|r| r.collisions.impact_zones > 0)
-            .count(),
+        c.zone_steps(),
         c.quits
     );
     // The scene really is hard: the sheet lands and touches itself.
@@ -245,10 +252,7 @@ fn twisted_strip(params: SimParams) {
             .iter()
             .map(|r| r.collisions.impulses)
             .sum::<usize>(),
-        c.reports
-            .iter()
-            .filter(|r| r.collisions.impact_zones > 0)
-            .count(),
+        c.zone_steps(),
         c.reports.iter().filter(|r| r.collisions.stalled).count(),
         c.quits
     );
@@ -367,11 +371,7 @@ fn impact_zones_and_stall_alone_keep_the_folding_sheet_clean() {
         })
         .unwrap();
         let c = run_checked(&cloth, &mut sim, &obs, 120, 2e-3, |_, _| {});
-        let zone_steps = c
-            .reports
-            .iter()
-            .filter(|r| r.collisions.impact_zones > 0)
-            .count();
+        let zone_steps = c.zone_steps();
         let stalls = c.reports.iter().filter(|r| r.collisions.stalled).count();
         eprintln!(
             "{name}: {zone_steps} zone steps, {stalls} stalls, {} quits",
@@ -415,11 +415,7 @@ fn heavy_collision_masses_keep_the_folding_sheet_clean() {
                 .collect();
             sim.set_collision_mass_factors(f).unwrap();
             let c = run_checked(&cloth, &mut sim, &obs, 120, 2e-3, |_, _| {});
-            let zone_steps = c
-                .reports
-                .iter()
-                .filter(|r| r.collisions.impact_zones > 0)
-                .count();
+            let zone_steps = c.zone_steps();
             if zones_only {
                 assert!(zone_steps > 5, "the fail-safe must have been exercised");
             }
@@ -575,7 +571,7 @@ fn shirt_draped_on_a_moving_body_stays_intersection_free() {
         .fold(f64::MIN, f64::max);
     eprintln!(
         "draped shirt: {body_contacts} body contacts, peak stretch {stretch:.3}, {} zone steps, {} quits",
-        c.reports.iter().filter(|r| r.collisions.impact_zones > 0).count(),
+        c.zone_steps(),
         c.quits
     );
     // The shirt really rests on the moving body.
