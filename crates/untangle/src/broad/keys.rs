@@ -8,9 +8,8 @@
 //! lanes (like the boxes of [`super::lanes`]); a primitive with fewer keys repeats its first one
 //! in the rows after its last (a repeated key changes no "any key equal" test). The tests give a
 //! bit matrix laid out as the box tests' (bit `BLOCK * i + j` for primitive `i` of the first
-//! leaf and `j` of the second), for the rows the caller asks for. With AVX2 (checked at run
-//! time) eight keys are compared per instruction; the plain version gives the same bits (integer
-//! equality) and is the reference.
+//! leaf and `j` of the second). [`without_shared`] is the plain reference; the leaf tests of
+//! [`super::lanes`] compare eight keys per AVX2 instruction inside their row loops.
 
 use super::lanes::BLOCK;
 
@@ -70,41 +69,20 @@ impl KeyBlock {
 
 /// The bits of `bits` (a bit matrix between the primitives of `a` and those of `b`, as the
 /// block box tests give it) whose two primitives share no key: the pairs a traversal reports.
-/// Only the rows of `a` with a bit set in `bits` are compared, and only the first `ka` key rows
-/// of `a` and `kb` of `b` (1 to [`KEYS`]: the number of keys the primitives were given; the
-/// rows after them repeat the first).
-#[inline]
+/// Only the rows of `a` with a bit set in `bits` are compared. The reference of the leaf tests
+/// that compare keys in lanes (`super::lanes::cross_block_keyed`, `self_block_keyed`) and their
+/// version for CPUs without AVX2. `ka` and `kb` (the numbers of keys the primitives were given)
+/// are not needed here: the rows after them repeat the first key.
 pub fn without_shared(bits: u64, a: &KeyBlock, ka: usize, b: &KeyBlock, kb: usize) -> u64 {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2.
-        return unsafe {
-            match (ka, kb) {
-                (1, 1) => avx::without_shared::<1, 1>(bits, a, b),
-                (1, 3) => avx::without_shared::<1, 3>(bits, a, b),
-                (3, 1) => avx::without_shared::<3, 1>(bits, a, b),
-                (2, 2) => avx::without_shared::<2, 2>(bits, a, b),
-                _ => avx::without_shared::<KEYS, KEYS>(bits, a, b),
-            }
-        };
-    }
-    let _ = (ka, kb);
-    without_shared_plain(bits, a, b)
-}
-
-/// The eight bits of row `i` of a bit matrix.
-const ROW: u64 = (1 << BLOCK) - 1;
-
-/// [`without_shared`] one pair at a time.
-fn without_shared_plain(bits: u64, a: &KeyBlock, b: &KeyBlock) -> u64 {
+    debug_assert!(ka <= KEYS && kb <= KEYS);
     let mut out = bits;
     let mut rest = bits;
     while rest != 0 {
         let i = rest.trailing_zeros() as usize / BLOCK;
         rest &= !(ROW << (BLOCK * i));
-        let ka = a.keys(i);
+        let keys = a.keys(i);
         for j in 0..BLOCK {
-            if share(&ka, &b.keys(j)) {
+            if share(&keys, &b.keys(j)) {
                 out &= !(1 << (BLOCK * i + j));
             }
         }
@@ -112,45 +90,8 @@ fn without_shared_plain(bits: u64, a: &KeyBlock, b: &KeyBlock) -> u64 {
     out
 }
 
-#[cfg(target_arch = "x86_64")]
-mod avx {
-    //! [`super::without_shared`] with AVX2: a primitive's key broadcast to eight lanes and
-    //! compared with a key row of the other block.
-    use super::{KeyBlock, BLOCK, KEYS, ROW};
-    use std::arch::x86_64::*;
-
-    /// [`super::without_shared`] over the first `KA` key rows of `a` and `KB` of `b` (AVX2
-    /// required).
-    #[inline]
-    #[target_feature(enable = "avx2")]
-    pub(super) fn without_shared<const KA: usize, const KB: usize>(
-        bits: u64,
-        a: &KeyBlock,
-        b: &KeyBlock,
-    ) -> u64 {
-        debug_assert!(KA <= KEYS && KB <= KEYS);
-        // SAFETY: each row is eight `u32`s, 32-byte aligned (the block is, and rows are 32
-        // bytes long).
-        let rows: [__m256i; KB] =
-            std::array::from_fn(|r| unsafe { _mm256_load_si256(b.k[r].as_ptr().cast()) });
-        let mut out = bits;
-        let mut rest = bits;
-        while rest != 0 {
-            let i = rest.trailing_zeros() as usize / BLOCK;
-            rest &= !(ROW << (BLOCK * i));
-            let mut eq = _mm256_setzero_si256();
-            for r in 0..KA {
-                let key = _mm256_set1_epi32(a.k[r][i] as i32);
-                for row in &rows {
-                    eq = _mm256_or_si256(eq, _mm256_cmpeq_epi32(key, *row));
-                }
-            }
-            let shared = _mm256_movemask_ps(_mm256_castsi256_ps(eq)) as u32 as u64;
-            out &= !(shared << (BLOCK * i));
-        }
-        out
-    }
-}
+/// The eight bits of row `i` of a bit matrix.
+const ROW: u64 = (1 << BLOCK) - 1;
 
 #[cfg(test)]
 mod tests {
@@ -159,7 +100,7 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(2000))]
-        /// The block test (AVX2 when the CPU has it, and the plain one) clears exactly the bits
+        /// The block test clears exactly the bits
         /// of the pairs that share a key (brute force over the unpadded keys), and only those
         /// of `bits`; keys drawn from a small range so that sharing is frequent.
         #[test]
@@ -193,7 +134,6 @@ mod tests {
             let kb_rows = kb.iter().map(|k| k.len()).max().unwrap_or(1);
             prop_assert_eq!(without_shared(bits, &a, ka_rows, &b, kb_rows), want);
             prop_assert_eq!(without_shared(bits, &a, KEYS, &b, KEYS), want);
-            prop_assert_eq!(without_shared_plain(bits, &a, &b), want);
         }
     }
 
