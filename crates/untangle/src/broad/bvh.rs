@@ -8,6 +8,7 @@
 //! near the root and return results in a fixed order, so the output is identical for any thread
 //! count.
 
+use super::keys::{self, KeyBlock, Keys};
 use super::lanes::{self, Block, BLOCK};
 use crate::geom::Aabb;
 
@@ -68,6 +69,12 @@ pub struct Bvh {
     pub(super) blocks: Vec<Block>,
     /// The leaf node of each block.
     block_leaf: Vec<u32>,
+    /// Shared-vertex keys of each slot ([`Bvh::set_keys`]; empty: none).
+    slot_keys: Vec<Keys>,
+    /// The keys of each block's slots as lanes (parallel to `blocks`; empty: none).
+    key_blocks: Vec<KeyBlock>,
+    /// Keys per primitive given to [`Bvh::set_keys`] (0: none).
+    key_count: usize,
     /// Distinct for every build (0: never built); kept by refits and clones, which keep the
     /// tree's shape (what a [`super::front::Front`] depends on).
     pub(super) shape_id: u64,
@@ -136,8 +143,42 @@ impl Bvh {
             blocks,
             block_leaf,
             slot_aabbs,
+            slot_keys: Vec::new(),
+            key_blocks: Vec::new(),
+            key_count: 0,
             shape_id: SHAPES.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
+    }
+
+    /// Gives primitive `p` the vertex keys `keys[p]` (1 to [`keys::KEYS`] of them: a vertex, an
+    /// edge's ends, a triangle's corners): from then on the self and cross traversals
+    /// ([`Bvh::self_pairs`], [`Bvh::cross_pairs`] and their slot, culled and tracked forms)
+    /// skip the pairs of primitives that share a key, a cross traversal only when both
+    /// hierarchies have keys. Refits keep the keys; a build starts without them. Queries
+    /// ([`Bvh::query`]) ignore them.
+    pub fn set_keys<const K: usize>(&mut self, keys: &[[u32; K]]) {
+        assert_eq!(keys.len(), self.order.len(), "one key set per primitive");
+        assert!(
+            (1..=keys::KEYS).contains(&K),
+            "1 to KEYS keys per primitive"
+        );
+        self.key_count = K;
+        self.slot_keys = self
+            .order
+            .iter()
+            .map(|&p| keys::padded(&keys[p as usize]))
+            .collect();
+        let (nodes, slot_keys) = (&self.nodes, &self.slot_keys);
+        self.key_blocks = self
+            .block_leaf
+            .iter()
+            .map(|&leaf| KeyBlock::new(&slot_keys[nodes[leaf as usize].slots()]))
+            .collect();
+    }
+
+    /// Whether [`Bvh::set_keys`] gave the primitives keys (since the build).
+    pub fn has_keys(&self) -> bool {
+        !self.slot_keys.is_empty()
     }
 
     /// Number of primitives.
@@ -214,8 +255,8 @@ impl Bvh {
         }
     }
 
-    /// Calls `visit(i, j, out)` for every pair `i != j` of primitives whose boxes overlap, each
-    /// unordered pair once, and returns everything pushed to `out`, in an order independent of the
+    /// Calls `visit(i, j, out)` for every pair `i != j` of primitives whose boxes overlap (and
+    /// that share no key, after [`Bvh::set_keys`]), each unordered pair once, and returns everything pushed to `out`, in an order independent of the
     /// number of threads.
     pub fn self_pairs<T, F>(&self, visit: F) -> Vec<T>
     where
@@ -298,16 +339,25 @@ impl Bvh {
         out: &mut Vec<T>,
     ) {
         let s = n.start as usize;
+        let keyed = self.has_keys();
         if n.block != NO_BLOCK {
-            let bits = lanes::self_block(&self.blocks[n.block as usize], n.count as usize);
+            let (b, c) = (n.block as usize, n.count as usize);
+            let bits = if keyed {
+                lanes::self_block_keyed(&self.blocks[b], c, &self.key_blocks[b], self.key_count)
+            } else {
+                lanes::self_block(&self.blocks[b], c)
+            };
             visit_bits(bits, s, s, visit, out);
             return;
         }
         let slots = &self.slot_aabbs[s..s + n.count as usize];
         for (di, bi) in slots.iter().enumerate() {
             for (dj, bj) in slots[di + 1..].iter().enumerate() {
-                if overlap(bi, bj) {
-                    visit((s + di) as u32, (s + di + 1 + dj) as u32, out);
+                let (i, j) = (s + di, s + di + 1 + dj);
+                if overlap(bi, bj)
+                    && !(keyed && keys::share(&self.slot_keys[i], &self.slot_keys[j]))
+                {
+                    visit(i as u32, j as u32, out);
                 }
             }
         }
@@ -325,12 +375,22 @@ impl Bvh {
         out: &mut Vec<T>,
     ) {
         let (sa, sb) = (na.start as usize, nb.start as usize);
+        let keyed = self.has_keys() && other.has_keys();
         if na.block != NO_BLOCK && nb.block != NO_BLOCK {
-            let (ba, bb) = (
-                &self.blocks[na.block as usize],
-                &other.blocks[nb.block as usize],
-            );
-            let bits = lanes::cross_block(ba, na.count as usize, &nb.aabb, bb, nb.count as usize);
+            let (ka, kb) = (na.block as usize, nb.block as usize);
+            let (ba, bb) = (&self.blocks[ka], &other.blocks[kb]);
+            let (ca, cb) = (na.count as usize, nb.count as usize);
+            let bits = if keyed {
+                let keys = (
+                    &self.key_blocks[ka],
+                    self.key_count,
+                    &other.key_blocks[kb],
+                    other.key_count,
+                );
+                lanes::cross_block_keyed(ba, ca, &nb.aabb, bb, cb, keys)
+            } else {
+                lanes::cross_block(ba, ca, &nb.aabb, bb, cb)
+            };
             visit_bits(bits, sa, sb, visit, out);
             return;
         }
@@ -344,8 +404,11 @@ impl Bvh {
                 continue;
             }
             for (dj, bj) in boxes_b.iter().enumerate() {
-                if overlap(bi, bj) {
-                    visit((sa + di) as u32, (sb + dj) as u32, out);
+                let (i, j) = (sa + di, sb + dj);
+                if overlap(bi, bj)
+                    && !(keyed && keys::share(&self.slot_keys[i], &other.slot_keys[j]))
+                {
+                    visit(i as u32, j as u32, out);
                 }
             }
         }
@@ -407,7 +470,8 @@ impl Bvh {
     }
 
     /// Calls `visit(i, j, out)` for every primitive `i` of `self` and `j` of `other` whose boxes
-    /// overlap; deterministic order as in [`Bvh::self_pairs`].
+    /// overlap (and that share no key, when both have keys: [`Bvh::set_keys`]); deterministic
+    /// order as in [`Bvh::self_pairs`].
     pub fn cross_pairs<T, F>(&self, other: &Bvh, visit: F) -> Vec<T>
     where
         T: Send,
@@ -835,6 +899,62 @@ mod tests {
                 hits.sort();
                 let want: Vec<u32> = (0..moved.len() as u32).filter(|&i| moved[i as usize].overlaps(q)).collect();
                 prop_assert_eq!(hits, want);
+            }
+        }
+    }
+
+    proptest! {
+        /// With vertex keys ([`Bvh::set_keys`]: random vertex indices from a small range, one to
+        /// three per primitive) the self and cross traversals report exactly the overlapping
+        /// pairs that share no key (brute force), for any leaf size (leaves with and without
+        /// blocks), also after a refit; a cross traversal with a tree without keys drops none.
+        #[test]
+        fn keyed_traversals_drop_exactly_the_pairs_sharing_a_key(
+            raw in proptest::collection::vec((proptest::array::uniform3(-10.0f64..10.0), proptest::array::uniform3(0.0f64..3.0)), 0..300),
+            raw2 in proptest::collection::vec((proptest::array::uniform3(-10.0f64..10.0), proptest::array::uniform3(0.0f64..3.0)), 0..100),
+            seed in any::<u64>(),
+            leaf in 1usize..20,
+        ) {
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let (a, b) = (boxes(&raw), boxes(&raw2));
+            let verts = 1 + a.len().max(b.len()) as u32 / 2;
+            let ka: Vec<[u32; 2]> = (0..a.len()).map(|_| [rng.random_range(0..verts), rng.random_range(0..verts)]).collect();
+            let kb: Vec<[u32; 3]> = (0..b.len()).map(|_| std::array::from_fn(|_| rng.random_range(0..verts))).collect();
+            let leaf = if leaf < 10 { 8 } else { leaf - 9 };
+            let mut t = Bvh::build_with_leaf_size(&a, leaf);
+            t.set_keys(&ka);
+            let mut u = Bvh::build_with_leaf_size(&b, leaf);
+            let plain = u.clone();
+            u.set_keys(&kb);
+            let share = |x: &[u32], y: &[u32]| x.iter().any(|k| y.contains(k));
+            for round in 0..2 {
+                let a = if round == 0 { a.clone() } else {
+                    let moved: Vec<Aabb> = a.iter().map(|b| Aabb { min: b.min * 0.9, max: b.max * 0.9 }).collect();
+                    t.refit(&moved);
+                    moved
+                };
+                let mut got: Vec<(u32, u32)> = t.self_pairs(|i, j, o| o.push((i.min(j), i.max(j))));
+                got.sort();
+                let mut want = Vec::new();
+                for i in 0..a.len() { for j in i + 1..a.len() {
+                    if a[i].overlaps(&a[j]) && !share(&ka[i], &ka[j]) { want.push((i as u32, j as u32)); }
+                } }
+                prop_assert_eq!(got, want);
+                let mut got: Vec<(u32, u32)> = t.cross_pairs(&u, |i, j, o| o.push((i, j)));
+                got.sort();
+                let mut want = Vec::new();
+                let mut all = Vec::new();
+                for i in 0..a.len() { for j in 0..b.len() {
+                    if a[i].overlaps(&b[j]) {
+                        all.push((i as u32, j as u32));
+                        if !share(&ka[i], &kb[j]) { want.push((i as u32, j as u32)); }
+                    }
+                } }
+                prop_assert_eq!(got, want);
+                let mut got: Vec<(u32, u32)> = t.cross_pairs(&plain, |i, j, o| o.push((i, j)));
+                got.sort();
+                prop_assert_eq!(got, all);
             }
         }
     }

@@ -9,7 +9,12 @@
 //! `j` of the second, so that visiting the set bits in increasing order visits the pairs in
 //! slot order of the first block, then of the second (the order of the traversals' plain loops).
 
+use super::keys::{self, KeyBlock};
 use crate::geom::Aabb;
+
+/// Key blocks of the two sides of a block test and their numbers of keys per primitive (see
+/// [`keys::without_shared`]).
+pub type KeyPair<'a> = (&'a KeyBlock, usize, &'a KeyBlock, usize);
 
 /// Most boxes in a block (the collision hierarchies' leaf size).
 pub const BLOCK: usize = 8;
@@ -99,6 +104,56 @@ pub fn cross_block(a: &Block, na: usize, cull: &Aabb, b: &Block, nb: usize) -> u
     cross_block_plain(a, na, cull, b, nb)
 }
 
+/// [`cross_block`] without the pairs whose primitives share a key (`keys`: the key blocks of
+/// `a` and `b`): the same bits as [`keys::without_shared`] of [`cross_block`]'s, with the keys
+/// compared inside the row loop, for the rows with an overlap only.
+#[inline]
+pub fn cross_block_keyed(
+    a: &Block,
+    na: usize,
+    cull: &Aabb,
+    b: &Block,
+    nb: usize,
+    keys: KeyPair<'_>,
+) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    if avx2() {
+        let (ka, kb) = (keys.0, keys.2);
+        // SAFETY: the CPU has AVX2.
+        return unsafe {
+            match (keys.1, keys.3) {
+                (2, 2) => avx::cross_block_keyed::<2, 2>(a, na, cull, b, nb, ka, kb),
+                (1, 3) => avx::cross_block_keyed::<1, 3>(a, na, cull, b, nb, ka, kb),
+                (3, 1) => avx::cross_block_keyed::<3, 1>(a, na, cull, b, nb, ka, kb),
+                (1, 1) => avx::cross_block_keyed::<1, 1>(a, na, cull, b, nb, ka, kb),
+                _ => avx::cross_block_keyed::<{ keys::KEYS }, { keys::KEYS }>(
+                    a, na, cull, b, nb, ka, kb,
+                ),
+            }
+        };
+    }
+    let bits = cross_block_plain(a, na, cull, b, nb);
+    keys::without_shared(bits, keys.0, keys.1, keys.2, keys.3)
+}
+
+/// [`self_block`] without the pairs whose primitives share a key (`keys`, `count`: the block's
+/// key block and keys per primitive), as [`cross_block_keyed`].
+#[inline]
+pub fn self_block_keyed(a: &Block, n: usize, keys: &KeyBlock, count: usize) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    if avx2() {
+        // SAFETY: the CPU has AVX2.
+        return unsafe {
+            match count {
+                1 => avx::self_block_keyed::<1>(a, n, keys),
+                2 => avx::self_block_keyed::<2>(a, n, keys),
+                _ => avx::self_block_keyed::<{ keys::KEYS }>(a, n, keys),
+            }
+        };
+    }
+    keys::without_shared(self_block_plain(a, n), keys, count, keys, count)
+}
+
 /// The overlapping pairs among the first `n` boxes of `a`: bit `BLOCK * i + j` for `i < j` when
 /// box `i` overlaps box `j`.
 #[inline]
@@ -171,7 +226,7 @@ fn row_block_plain(q: &Aabb, b: &Block, nb: usize) -> u64 {
 mod avx {
     //! The block tests with AVX2: four boxes of a block per instruction (two registers per
     //! coordinate row), against one box broadcast to every lane.
-    use super::{bounds_of, mask, Block, BLOCK};
+    use super::{bounds_of, mask, Block, KeyBlock, BLOCK};
     use crate::geom::Aabb;
     use std::arch::x86_64::*;
 
@@ -246,6 +301,75 @@ mod avx {
             let i = rows.trailing_zeros() as usize;
             rows &= rows - 1;
             out |= (row(b, &splat(&a.bounds(i))) & cols) << (BLOCK * i);
+        }
+        out
+    }
+
+    /// The `KB` key rows of `k`.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn key_rows<const KB: usize>(k: &KeyBlock) -> [__m256i; KB] {
+        // SAFETY: each row is eight `u32`s, 32-byte aligned (the block is, and rows are 32
+        // bytes long).
+        std::array::from_fn(|r| unsafe { _mm256_load_si256(k.row(r).as_ptr().cast()) })
+    }
+
+    /// Bit `j` when one of the first `KA` keys of primitive `i` of `ka` equals one of `rows`'.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn shared<const KA: usize, const KB: usize>(
+        ka: &KeyBlock,
+        i: usize,
+        rows: &[__m256i; KB],
+    ) -> u64 {
+        let mut eq = _mm256_setzero_si256();
+        for r in 0..KA {
+            let key = _mm256_set1_epi32(ka.row(r)[i] as i32);
+            for row in rows {
+                eq = _mm256_or_si256(eq, _mm256_cmpeq_epi32(key, *row));
+            }
+        }
+        _mm256_movemask_ps(_mm256_castsi256_ps(eq)) as u32 as u64
+    }
+
+    /// [`super::cross_block_keyed`] with `KA` and `KB` keys per primitive (AVX2 required).
+    #[target_feature(enable = "avx2")]
+    pub(super) fn cross_block_keyed<const KA: usize, const KB: usize>(
+        a: &Block,
+        na: usize,
+        cull: &Aabb,
+        b: &Block,
+        nb: usize,
+        ka: &KeyBlock,
+        kb: &KeyBlock,
+    ) -> u64 {
+        let mut rows = row(a, &splat(&bounds_of(cull))) & mask(na);
+        let cols = mask(nb);
+        let keys = key_rows::<KB>(kb);
+        let mut out = 0;
+        while rows != 0 {
+            let i = rows.trailing_zeros() as usize;
+            rows &= rows - 1;
+            let hit = row(b, &splat(&a.bounds(i))) & cols;
+            if hit != 0 {
+                out |= (hit & !shared::<KA, KB>(ka, i, &keys)) << (BLOCK * i);
+            }
+        }
+        out
+    }
+
+    /// [`super::self_block_keyed`] with `K` keys per primitive (AVX2 required).
+    #[target_feature(enable = "avx2")]
+    pub(super) fn self_block_keyed<const K: usize>(a: &Block, n: usize, k: &KeyBlock) -> u64 {
+        let n = n.min(BLOCK);
+        let keys = key_rows::<K>(k);
+        let mut out = 0;
+        for i in 0..n.saturating_sub(1) {
+            let later = mask(n) & !mask(i + 1);
+            let hit = row(a, &splat(&a.bounds(i))) & later;
+            if hit != 0 {
+                out |= (hit & !shared::<K, K>(k, i, &keys)) << (BLOCK * i);
+            }
         }
         out
     }
@@ -375,6 +499,37 @@ mod tests {
             let want = brute(&xa, &xa, true);
             prop_assert_eq!(self_block(&a, na), want);
             prop_assert_eq!(self_block_plain(&a, na), want);
+            // The keyed tests drop exactly the pairs sharing a key (keys from a small range, so
+            // that sharing is frequent; one to three keys per primitive).
+            let keyed = |x: &[Aabb], salt: u64| -> (KeyBlock, usize, Vec<keys::Keys>) {
+                let count = 1 + (salt % 3) as usize;
+                let ks: Vec<keys::Keys> = (0..x.len() as u64)
+                    .map(|i| {
+                        let k: Vec<u32> = (0..count as u64)
+                            .map(|r| ((i * 7 + r * 5 + salt) % 11) as u32)
+                            .collect();
+                        keys::padded(&k)
+                    })
+                    .collect();
+                (KeyBlock::new(&ks), count, ks)
+            };
+            let drop_shared = |bits: u64, ka: &[keys::Keys], kb: &[keys::Keys]| {
+                let mut out = bits;
+                for (i, x) in ka.iter().enumerate() {
+                    for (j, y) in kb.iter().enumerate() {
+                        if keys::share(x, y) {
+                            out &= !(1 << (BLOCK * i + j));
+                        }
+                    }
+                }
+                out
+            };
+            let (kab, ca, ka) = keyed(&xa, na as u64);
+            let (kbb, cb, kb) = keyed(&xb, 7 + nb as u64);
+            let want = drop_shared(brute(&xa, &xb, false), &ka, &kb);
+            prop_assert_eq!(cross_block_keyed(&a, na, &cull, &b, nb, (&kab, ca, &kbb, cb)), want);
+            let want = drop_shared(brute(&xa, &xa, true), &ka, &ka);
+            prop_assert_eq!(self_block_keyed(&a, na, &kab, ca), want);
             for q in xa.iter().take(4) {
                 let want = brute(std::slice::from_ref(q), &xb, false);
                 prop_assert_eq!(row_block(q, &b, nb), want);

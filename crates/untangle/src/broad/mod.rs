@@ -2,10 +2,12 @@
 //! meshes that move every step) and parallel, deterministic self- and cross-traversal; a sweep
 //! and prune along x for small, dense sets (self-overlaps only); traversal fronts that let the
 //! next traversal of refitted hierarchies start where the last one stopped; the leaves' box
-//! tests eight boxes against eight at once on coordinate arrays.
+//! tests eight boxes against eight at once on coordinate arrays; pairs of primitives that share
+//! a vertex dropped at the leaves by vertex keys.
 
 pub mod bvh;
 pub mod front;
+pub mod keys;
 pub mod lanes;
 pub mod sweep;
 

@@ -144,6 +144,13 @@ impl BroadPhase {
                 || build(&tri),
                 || rayon::join(|| build(&edge), || build(&vert)),
             );
+            // Vertex keys: the traversals drop corner and shared-vertex pairs at the leaves.
+            let verts: Vec<[u32; 1]> = (0..scene.x0.len() as u32).map(|p| [p]).collect();
+            let (t, e, vk) = (&mut self.tri, &mut self.edge, &mut self.vert);
+            rayon::join(
+                || t.set_keys(scene.triangles),
+                || rayon::join(|| e.set_keys(scene.edges), || vk.set_keys(&verts)),
+            );
             self.obs_tri = build(&obs_tri);
             self.obs_edge = build(&obs_edge);
             self.obs_vert = build(&obs_vert);
@@ -389,14 +396,11 @@ impl BroadPhase {
         // obstacle flag (bit 32), triangle (bits 0..32).
         let vertex_pairs = || -> Vec<Pair> {
             let mut front = lock(&self.fronts.vertex_triangle);
+            // Corners are dropped by the hierarchies' vertex keys.
             let mut keys: Vec<u64> =
                 self.vert
                     .cross_pairs_tracked(&self.tri, &mut front, |p, t, o: &mut Vec<u64>| {
-                        // Not a corner (spelled out: `contains` became a call in this closure).
-                        let c = scene.triangles[t as usize];
-                        if c[0] != p && c[1] != p && c[2] != p {
-                            o.push(((p as u64) << 33) | t as u64);
-                        }
+                        o.push(((p as u64) << 33) | t as u64);
                     });
             drop(front);
             if !obs.is_empty() {
@@ -437,17 +441,14 @@ impl BroadPhase {
         };
         // Edge-edge pairs sorted by (edge, edge): the order reaches the decisions (proximity's
         // Gauss-Seidel sweeps, the resting contacts), so it must not depend on the tree.
-        let edges = scene.edges;
-        let ne = edges.len();
+        let ne = scene.edges.len();
         let edge_pairs = || -> Vec<(u32, u32)> {
             let mut front = lock(&self.fronts.edge_edge);
+            // Pairs with a common vertex are dropped by the hierarchy's vertex keys.
             let mut ee: Vec<(u32, u32)> =
                 self.edge
                     .self_pairs_tracked(&mut front, |i, j, o: &mut Vec<(u32, u32)>| {
-                        let (e, f) = (edges[i as usize], edges[j as usize]);
-                        if e[0] != f[0] && e[0] != f[1] && e[1] != f[0] && e[1] != f[1] {
-                            o.push((i.min(j), i.max(j)));
-                        }
+                        o.push((i.min(j), i.max(j)));
                     });
             drop(front);
             crate::radix::sort_by_bucket_then_key(&mut ee, (ne, ne), |p| p.0, |p| p.1);
