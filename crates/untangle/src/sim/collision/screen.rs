@@ -13,7 +13,8 @@
 use rayon::prelude::*;
 
 use super::impulses::{self, Collision};
-use super::proximity::{self, NearList, NodeStats};
+use super::proximity::{self, NearList, NodeStats, Verdict};
+use super::rejection::{self, Lanes, Row};
 use super::{Pair, PairKind, Scene};
 use crate::geom::Vec3;
 use crate::sim::policy::ContactPolicy;
@@ -41,9 +42,33 @@ pub fn screen(
     policy: &dyn ContactPolicy,
     proximity: Option<bool>,
 ) -> Screened {
+    screen_with(scene, v, candidates, policy, proximity, Lanes::detect())
+}
+
+/// [`screen`], with proximity's cheap rejection tests four cloth pairs at a time when `lanes`
+/// is given ([`rejection`]: the same verdicts as the scalar path, which takes every pair the
+/// lanes leave undecided; without `lanes`, every pair).
+fn screen_with(
+    scene: &Scene,
+    v: &[Vec3],
+    candidates: &[Pair],
+    policy: &dyn ContactPolicy,
+    proximity: Option<bool>,
+    lanes: Option<Lanes>,
+) -> Screened {
     let table = VertexTable::new(scene, v);
     // The cloth pairs' thickness, when the policy gives all the same (asked once).
     let uniform = policy.uniform_cloth().map(super::thickness_of);
+    let thickness = |p: Pair, cloth: bool| match uniform {
+        Some(t) if cloth => t,
+        _ => scene.thickness(p, policy),
+    };
+    // The lanes decide proximity's verdicts (and the CCD tests they settle).
+    let lanes = lanes.zip(proximity.map(|within_reach| rejection::Settings {
+        h: scene.h,
+        ccd_ratio: scene.ccd_ratio,
+        lazy: !within_reach,
+    }));
     let chunks: Vec<Screened> = candidates
         .par_chunks(CHUNK)
         .map(|chunk| {
@@ -51,51 +76,63 @@ pub fn screen(
                 near: NearList::with_capacity(if proximity.is_some() { chunk.len() } else { 0 }),
                 collisions: Vec::new(),
             };
-            for &p in chunk {
+            let mut rest = chunk;
+            while let Some(&p) = rest.first() {
                 let cloth = matches!(p.kind, PairKind::VertexTriangle | PairKind::EdgeEdge);
-                let eps = match uniform {
-                    Some(t) if cloth => t,
-                    _ => scene.thickness(p, policy),
-                };
-                let Some(eps) = eps else {
-                    continue;
-                };
-                let nodes = scene.nodes(p);
-                let (x0, vel, stats) = if cloth {
-                    // Cloth nodes only: from the table.
-                    let rows = nodes.map(|k| &table.rows[k as usize]);
-                    (
-                        rows.map(|r| r.0),
-                        nodes.map(|k| v[k as usize]),
-                        rows.map(|r| r.1),
-                    )
-                } else {
-                    proximity::pair_inputs(scene, v, &nodes)
-                };
-                let ccd_eps = eps * scene.ccd_ratio;
-                let start = match proximity {
-                    Some(within_reach) => {
-                        let (verdict, start, ccd_settled) = proximity::screen_pair(
-                            scene,
-                            p,
-                            eps,
-                            &nodes,
-                            &x0,
-                            &vel,
-                            &stats,
-                            !within_reach,
-                            ccd_eps,
-                        );
-                        out.near.push(p, verdict);
-                        if ccd_settled {
+                if let (Some((lanes, settings)), Some(four)) = (lanes, rest.get(..4)) {
+                    if cloth && four.iter().all(|q| q.kind == p.kind) {
+                        let eps: [Option<f64>; 4] =
+                            std::array::from_fn(|l| thickness(four[l], true));
+                        let nodes: [[u32; 4]; 4] = std::array::from_fn(|l| scene.nodes(four[l]));
+                        let decided = match eps {
+                            [Some(a), Some(b), Some(c), Some(d)] => {
+                                if p.kind == PairKind::VertexTriangle {
+                                    lanes.reject4::<true>(
+                                        &table.rows,
+                                        &nodes,
+                                        [a, b, c, d],
+                                        settings,
+                                    )
+                                } else {
+                                    lanes.reject4::<false>(
+                                        &table.rows,
+                                        &nodes,
+                                        [a, b, c, d],
+                                        settings,
+                                    )
+                                }
+                            }
+                            _ => None,
+                        };
+                        if let Some((decided, dormant)) = decided {
+                            for l in 0..4 {
+                                if decided >> l & 1 == 0 {
+                                    let eps = eps[l].expect("a thickness");
+                                    one(
+                                        scene, v, &table, four[l], eps, &nodes[l], proximity,
+                                        &mut out,
+                                    );
+                                } else if dormant >> l & 1 != 0 {
+                                    out.near.push(four[l], Verdict::Dormant(nodes[l]));
+                                }
+                            }
+                            rest = &rest[4..];
                             continue;
                         }
-                        Some(start)
                     }
-                    None => None,
-                };
-                if let Some(c) = impulses::detect_screened(scene, v, p, eps, &nodes, &x0, start) {
-                    out.collisions.push(c);
+                }
+                rest = &rest[1..];
+                if let Some(eps) = thickness(p, cloth) {
+                    one(
+                        scene,
+                        v,
+                        &table,
+                        p,
+                        eps,
+                        &scene.nodes(p),
+                        proximity,
+                        &mut out,
+                    );
                 }
             }
             out
@@ -114,11 +151,70 @@ pub fn screen(
     }
 }
 
-/// Per cloth vertex, its start position (as [`Scene::position`] gives it at `t = 0`) and its
-/// [`NodeStats`] at the velocities of the pass: computed once instead of once per pair of the
-/// vertex (a vertex is in dozens of candidate pairs).
+/// Screens one candidate `p` with thickness `eps` and nodes `nodes` on the scalar path:
+/// proximity's verdict ([`proximity::screen_pair`], when `proximity` is on) and the CCD test
+/// at the start velocities, added to `out`.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn one(
+    scene: &Scene,
+    v: &[Vec3],
+    table: &VertexTable,
+    p: Pair,
+    eps: f64,
+    nodes: &[u32; 4],
+    proximity: Option<bool>,
+    out: &mut Screened,
+) {
+    let cloth = matches!(p.kind, PairKind::VertexTriangle | PairKind::EdgeEdge);
+    let (x0, vel, stats) = if cloth {
+        // Cloth nodes only: from the table.
+        let rows = nodes.map(|k| &table.rows[k as usize]);
+        (
+            rows.map(|r| Vec3::from(r.x)),
+            rows.map(|r| Vec3::from(r.v)),
+            rows.map(|r| NodeStats {
+                speed: r.speed,
+                vel_max: r.vel_max,
+                pos_max: r.pos_max,
+            }),
+        )
+    } else {
+        proximity::pair_inputs(scene, v, nodes)
+    };
+    let ccd_eps = eps * scene.ccd_ratio;
+    let start = match proximity {
+        Some(within_reach) => {
+            let (verdict, start, ccd_settled) = proximity::screen_pair(
+                scene,
+                p,
+                eps,
+                nodes,
+                &x0,
+                &vel,
+                &stats,
+                !within_reach,
+                ccd_eps,
+            );
+            out.near.push(p, verdict);
+            if ccd_settled {
+                return;
+            }
+            Some(start)
+        }
+        None => None,
+    };
+    if let Some(c) = impulses::detect_screened(scene, v, p, eps, nodes, &x0, start) {
+        out.collisions.push(c);
+    }
+}
+
+/// Per cloth vertex, its start position (as [`Scene::position`] gives it at `t = 0`), its
+/// velocity and its [`NodeStats`] at the velocities of the pass: computed once instead of once
+/// per pair of the vertex (a vertex is in dozens of candidate pairs), in the layout the lanes
+/// gather from.
 struct VertexTable {
-    rows: Vec<(Vec3, NodeStats)>,
+    rows: Vec<Row>,
 }
 
 impl VertexTable {
@@ -129,7 +225,14 @@ impl VertexTable {
                 .with_min_len(1024)
                 .map(|i| {
                     let x = scene.position(v, i as u32, 0.0);
-                    (x, NodeStats::of(&x, &v[i]))
+                    let s = NodeStats::of(&x, &v[i]);
+                    Row {
+                        x: x.into(),
+                        v: v[i].into(),
+                        speed: s.speed,
+                        vel_max: s.vel_max,
+                        pos_max: s.pos_max,
+                    }
                 })
                 .collect(),
         }
