@@ -46,6 +46,28 @@ pub struct Settings {
     pub lazy: bool,
 }
 
+/// What [`Lanes::reject4`] found, lane `l` in bit `l` of the masks and in entry `l` of the
+/// arrays.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Early {
+    /// Decided: `screen_pair` returns far or dormant before computing closest points, with the
+    /// first CCD pass's test settled.
+    pub decided: u32,
+    /// Of the decided lanes, those that are dormant (the others are far).
+    pub dormant: u32,
+    /// Undecided by every cheap test: `screen_pair` goes on to the closest points
+    /// ([`super::proximity::screen_closest`]) with the start gap `gap`, coordinate scale
+    /// `scale` and `ccd_settled` as in `ccd_settled`. (Lanes in neither mask: a verdict without
+    /// the CCD test settled; the scalar path takes them.)
+    pub closest: u32,
+    /// Whether the start gap settles the first CCD pass's test.
+    pub ccd_settled: u32,
+    /// The start gap (`screen_pair`'s lower distance bound before the in-plane axes).
+    pub gap: [f64; 4],
+    /// The coordinate scale.
+    pub scale: [f64; 4],
+}
+
 /// Proof that the CPU runs [`Lanes::reject4`] (AVX2), detected once per screening pass.
 #[derive(Clone, Copy, Debug)]
 pub struct Lanes(());
@@ -64,10 +86,8 @@ impl Lanes {
     }
 
     /// The early verdicts of four cloth pairs of one kind (vertex-triangle when `VT`, else
-    /// edge-edge) with nodes `nodes` (rows of `rows`) and thicknesses `eps`: bit `l` of the
-    /// first mask when lane `l` is decided (`screen_pair` returns far or dormant before
-    /// computing closest points, with the first CCD pass's test settled), bit `l` of the second
-    /// when that verdict is dormant. `None` when a node is not a row of `rows`.
+    /// edge-edge) with nodes `nodes` (rows of `rows`) and thicknesses `eps` (see [`Early`]).
+    /// `None` when a node is not a row of `rows`.
     #[inline]
     pub fn reject4<const VT: bool>(
         self,
@@ -75,18 +95,15 @@ impl Lanes {
         nodes: &[[u32; 4]; 4],
         eps: [f64; 4],
         s: Settings,
-    ) -> Option<(u32, u32)> {
-        // Rows are read without bounds checks: check the indices once.
-        let n = rows.len();
-        let top = nodes.iter().flatten().fold(0, |m, &k| m.max(k));
-        if top as usize >= n || n > (i64::MAX as usize) / STRIDE {
+    ) -> Option<Early> {
+        // (The lanes check every node against the rows before reading them.)
+        if rows.is_empty() || rows.len() > (i64::MAX as usize) / STRIDE {
             return None;
         }
         #[cfg(target_arch = "x86_64")]
         {
-            // SAFETY: `Lanes` exists only with AVX2, and every node indexes a row of `rows`
-            // (checked above).
-            Some(unsafe { avx::reject4::<VT>(rows, nodes, eps, s) })
+            // SAFETY: `Lanes` exists only with AVX2.
+            unsafe { avx::reject4::<VT>(rows, nodes, eps, s) }
         }
         #[cfg(not(target_arch = "x86_64"))]
         {
@@ -100,7 +117,7 @@ impl Lanes {
 mod avx {
     //! [`super::Lanes::reject4`] in AVX2 registers: lane `l` is pair `l`; every operation is the
     //! scalar one of `screen_pair` (and of the helpers it calls) on each lane.
-    use super::{Row, Settings, STRIDE};
+    use super::{Early, Row, Settings, STRIDE};
     use std::arch::x86_64::*;
 
     /// Four lanes of a 3-vector.
@@ -275,21 +292,33 @@ mod avx {
         _mm256_blendv_pd(neg_inf, _mm256_max_pd(ge, gf), ok)
     }
 
-    /// [`super::Lanes::reject4`] (AVX2 required; every node indexes a row of `rows`).
+    /// [`super::Lanes::reject4`] (AVX2 required; `rows` not empty, its length times `STRIDE`
+    /// an `i64`).
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn reject4<const VT: bool>(
         rows: &[Row],
         nodes: &[[u32; 4]; 4],
         eps: [f64; 4],
         s: Settings,
-    ) -> (u32, u32) {
+    ) -> Option<Early> {
         let base = rows.as_ptr() as *const f64;
         // Per node of the pairs, its row's offset in doubles, lane by lane.
         let offsets: [__m256i; 4] = std::array::from_fn(|k| {
             let o = |l: usize| (nodes[l][k] as usize * STRIDE) as i64;
             _mm256_set_epi64x(o(3), o(2), o(1), o(0))
         });
-        // SAFETY (all gathers): the offsets index rows of `rows` (the caller's contract), and
+        // Every offset at most the last row's (`rows` is not empty, and its length times
+        // `STRIDE` fits an `i64`), else no lanes.
+        let last = _mm256_set1_epi64x(((rows.len() - 1) * STRIDE) as i64);
+        let beyond = offsets.map(|o| _mm256_cmpgt_epi64(o, last));
+        let beyond = _mm256_or_si256(
+            _mm256_or_si256(beyond[0], beyond[1]),
+            _mm256_or_si256(beyond[2], beyond[3]),
+        );
+        if _mm256_movemask_epi8(beyond) != 0 {
+            return None;
+        }
+        // SAFETY (all gathers): the offsets index rows of `rows` (checked above), and
         // `field < STRIDE` stays inside the row (`Row` is `repr(C)`, nine doubles).
         let gather = |k: usize, field: usize| unsafe {
             _mm256_i64gather_pd::<8>(base.add(field), offsets[k])
@@ -375,8 +404,9 @@ mod avx {
             exceeds(gap, scale, ccd_at),
         );
         let by_gap = _mm256_or_pd(dormant_g, far_g);
-        let (decided, dormant) = if VT {
-            (_mm256_and_pd(by_gap, ccd_g), dormant_g)
+        // `tested`: a cheap test gave a verdict (far or dormant).
+        let (decided, dormant, tested) = if VT {
+            (_mm256_and_pd(by_gap, ccd_g), dormant_g, by_gap)
         } else {
             let extra = in_plane_gap(&x, &centre);
             let (dormant_e, far_e, ccd_e) = (
@@ -384,19 +414,32 @@ mod avx {
                 exceeds(extra, scale, far),
                 exceeds(extra, scale, ccd_at),
             );
-            let by_extra =
-                _mm256_and_pd(_mm256_or_pd(dormant_e, far_e), _mm256_or_pd(ccd_g, ccd_e));
+            let by_extra = _mm256_or_pd(dormant_e, far_e);
             (
-                _mm256_blendv_pd(by_extra, ccd_g, by_gap),
+                _mm256_blendv_pd(
+                    _mm256_and_pd(by_extra, _mm256_or_pd(ccd_g, ccd_e)),
+                    ccd_g,
+                    by_gap,
+                ),
                 // Dormant by the gap, or neither dormant nor far by it and dormant by the
                 // in-plane axes.
                 _mm256_or_pd(dormant_g, _mm256_andnot_pd(far_g, dormant_e)),
+                _mm256_or_pd(by_gap, by_extra),
             )
         };
-        (
-            _mm256_movemask_pd(decided) as u32,
-            _mm256_movemask_pd(dormant) as u32,
-        )
+        let mut out = Early {
+            decided: _mm256_movemask_pd(decided) as u32,
+            dormant: _mm256_movemask_pd(dormant) as u32,
+            closest: !_mm256_movemask_pd(tested) as u32 & 0xf,
+            ccd_settled: _mm256_movemask_pd(ccd_g) as u32,
+            ..Early::default()
+        };
+        // SAFETY: four doubles each.
+        unsafe {
+            _mm256_storeu_pd(out.gap.as_mut_ptr(), gap);
+            _mm256_storeu_pd(out.scale.as_mut_ptr(), scale);
+        }
+        Some(out)
     }
 }
 
@@ -439,7 +482,8 @@ mod tests {
         } else {
             lanes.reject4::<false>(rows, nodes, eps, s)
         };
-        let (decided, dormant) = got.expect("nodes are rows");
+        let early = got.expect("nodes are rows");
+        let (decided, dormant) = (early.decided, early.dormant);
         let obstacles = Default::default();
         let mut scene = scene_of(&[], &[], &[], &[], &obstacles, &[]);
         scene.h = s.h;
@@ -463,18 +507,34 @@ mod tests {
             let (verdict, start, settled) = screen_pair(
                 &scene, p, eps[l], &nodes[l], &x, &vel, &stats, s.lazy, ccd_eps,
             );
-            let (early, is_dormant) = match verdict {
+            let (settles, is_dormant) = match verdict {
                 Verdict::Far => (start.distance.is_none() && settled, false),
                 Verdict::Dormant(_) => (start.distance.is_none() && settled, true),
                 Verdict::Near(_) => (false, false),
             };
             assert_eq!(
                 decided >> l & 1 != 0,
-                early,
-                "lane {l}: decided {decided:b}, screen_pair early {early} ({x:?} {vel:?} {eps:?} {s:?})"
+                settles,
+                "lane {l}: decided {decided:b}, screen_pair early {settles} ({x:?} {vel:?} {eps:?} {s:?})"
             );
-            if early {
+            if settles {
                 assert_eq!(dormant >> l & 1 != 0, is_dormant, "lane {l}: {x:?} {vel:?}");
+            }
+            // The lanes that go on to the closest points, with what `screen_pair` passes on.
+            assert_eq!(
+                early.closest >> l & 1 != 0,
+                start.distance.is_some(),
+                "lane {l}"
+            );
+            if start.distance.is_some() {
+                assert_eq!(early.ccd_settled >> l & 1 != 0, settled, "lane {l}");
+                let g = early.gap[l];
+                assert!(
+                    g == start.gap || (g.is_nan() && start.gap.is_nan()),
+                    "lane {l}: {g} vs {}",
+                    start.gap
+                );
+                assert_eq!(early.scale[l].to_bits(), start.scale.to_bits(), "lane {l}");
             }
         }
         decided.count_ones()

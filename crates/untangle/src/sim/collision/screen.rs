@@ -13,7 +13,7 @@
 use rayon::prelude::*;
 
 use super::impulses::{self, Collision};
-use super::proximity::{self, NearList, NodeStats, Verdict};
+use super::proximity::{self, NearList, NodeStats, StartState};
 use super::rejection::{self, Lanes, Row};
 use super::{Pair, PairKind, Scene};
 use crate::geom::Vec3;
@@ -83,7 +83,8 @@ fn screen_with(
                     if cloth && four.iter().all(|q| q.kind == p.kind) {
                         let eps: [Option<f64>; 4] =
                             std::array::from_fn(|l| thickness(four[l], true));
-                        let nodes: [[u32; 4]; 4] = std::array::from_fn(|l| scene.nodes(four[l]));
+                        let nodes: [[u32; 4]; 4] =
+                            std::array::from_fn(|l| cloth_nodes(scene, four[l]));
                         let decided = match eps {
                             [Some(a), Some(b), Some(c), Some(d)] => {
                                 if p.kind == PairKind::VertexTriangle {
@@ -104,17 +105,26 @@ fn screen_with(
                             }
                             _ => None,
                         };
-                        if let Some((decided, dormant)) = decided {
+                        if let Some(early) = decided {
                             for l in 0..4 {
-                                if decided >> l & 1 == 0 {
-                                    let eps = eps[l].expect("a thickness");
-                                    one(
-                                        scene, v, &table, four[l], eps, &nodes[l], proximity,
-                                        &mut out,
-                                    );
-                                } else if dormant >> l & 1 != 0 {
-                                    out.near.push(four[l], Verdict::Dormant(nodes[l]));
+                                let (q, nodes) = (four[l], &nodes[l]);
+                                if early.decided >> l & 1 != 0 {
+                                    if early.dormant >> l & 1 != 0 {
+                                        out.near.push_dormant(q, *nodes);
+                                    }
+                                    continue;
                                 }
+                                // What `screen_pair` would pass on to the closest points.
+                                let next = (early.closest >> l & 1 != 0).then(|| {
+                                    let start = StartState {
+                                        gap: early.gap[l],
+                                        scale: early.scale[l],
+                                        distance: None,
+                                    };
+                                    (start, early.ccd_settled >> l & 1 != 0)
+                                });
+                                let eps = eps[l].expect("a thickness");
+                                one(scene, v, &table, q, eps, nodes, proximity, next, &mut out);
                             }
                             rest = &rest[4..];
                             continue;
@@ -131,6 +141,7 @@ fn screen_with(
                         eps,
                         &scene.nodes(p),
                         proximity,
+                        None,
                         &mut out,
                     );
                 }
@@ -151,9 +162,25 @@ fn screen_with(
     }
 }
 
+/// [`Scene::nodes`] of a cloth pair (vertex-triangle or edge-edge), inlined into the lanes'
+/// loop.
+#[inline(always)]
+fn cloth_nodes(scene: &Scene, p: Pair) -> [u32; 4] {
+    if p.kind == PairKind::VertexTriangle {
+        let t = scene.triangles[p.b as usize];
+        [p.a, t[0], t[1], t[2]]
+    } else {
+        debug_assert_eq!(p.kind, PairKind::EdgeEdge);
+        let (e, f) = (scene.edges[p.a as usize], scene.edges[p.b as usize]);
+        [e[0], e[1], f[0], f[1]]
+    }
+}
+
 /// Screens one candidate `p` with thickness `eps` and nodes `nodes` on the scalar path:
 /// proximity's verdict ([`proximity::screen_pair`], when `proximity` is on) and the CCD test
-/// at the start velocities, added to `out`.
+/// at the start velocities, added to `out`. `next`: when the lanes found the pair undecided by
+/// every cheap test, the start state and CCD settlement they pass on to the closest points
+/// ([`proximity::screen_closest`], a cloth pair with proximity on).
 #[allow(clippy::too_many_arguments)]
 #[inline]
 fn one(
@@ -164,6 +191,7 @@ fn one(
     eps: f64,
     nodes: &[u32; 4],
     proximity: Option<bool>,
+    next: Option<(StartState, bool)>,
     out: &mut Screened,
 ) {
     let cloth = matches!(p.kind, PairKind::VertexTriangle | PairKind::EdgeEdge);
@@ -185,17 +213,21 @@ fn one(
     let ccd_eps = eps * scene.ccd_ratio;
     let start = match proximity {
         Some(within_reach) => {
-            let (verdict, start, ccd_settled) = proximity::screen_pair(
-                scene,
-                p,
-                eps,
-                nodes,
-                &x0,
-                &vel,
-                &stats,
-                !within_reach,
-                ccd_eps,
-            );
+            let (verdict, start, ccd_settled) = if let Some((start, settled)) = next {
+                proximity::screen_closest(scene, p, eps, nodes, &x0, &stats, start, settled)
+            } else {
+                proximity::screen_pair(
+                    scene,
+                    p,
+                    eps,
+                    nodes,
+                    &x0,
+                    &vel,
+                    &stats,
+                    !within_reach,
+                    ccd_eps,
+                )
+            };
             out.near.push(p, verdict);
             if ccd_settled {
                 return;
@@ -269,10 +301,12 @@ mod tests {
     /// ([`impulses::detect`]) over the sorted candidates, bit for bit and in the same order,
     /// with proximity off, with lazy and with eager proximity screening, on crumpled sheets
     /// thrown at random velocities (many collisions); with the policy's uniform thickness
-    /// asked once per pass (the default policy) and pair by pair (same lists).
+    /// asked once per pass (the default policy) and pair by pair (same lists); and screening
+    /// with the lanes ([`rejection`]) gives the scalar path's verdicts and collisions, bit for
+    /// bit.
     #[test]
     fn screened_collisions_are_those_of_a_full_ccd_pass() {
-        let mut total = 0;
+        let (mut total, mut lanes_used) = (0, false);
         for seed in 0..6u64 {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let sheet = crate::scenes::handkerchief("s", 10, 11, 0.1, 0.1, |uv: Vec2| {
@@ -312,6 +346,17 @@ mod tests {
             total += want.len();
             for proximity in [None, Some(false), Some(true)] {
                 let screened = screen(&scene, &v, &cands, &policy, proximity);
+                // The scalar path alone (no lanes): the same verdicts, bit for bit, and the
+                // same collisions.
+                let scalar = screen_with(&scene, &v, &cands, &policy, proximity, None);
+                assert_eq!(screened.near.fingerprint(), scalar.near.fingerprint());
+                assert_eq!(screened.collisions.len(), scalar.collisions.len());
+                for (a, b) in screened.collisions.iter().zip(&scalar.collisions) {
+                    assert_eq!(a.pair, b.pair);
+                    assert_eq!(a.toi.to_bits(), b.toi.to_bits());
+                    assert_eq!(a.thickness.to_bits(), b.thickness.to_bits());
+                }
+                lanes_used |= proximity.is_some() && Lanes::detect().is_some();
                 // The same policy asked pair by pair (not declared uniform): the same lists.
                 let per_pair = screen(&scene, &v, &cands, &PerPair(policy), proximity);
                 assert_eq!(screened.near.evaluated(), per_pair.near.evaluated());
@@ -327,5 +372,6 @@ mod tests {
             }
         }
         assert!(total > 50, "{total} collisions: too few to test");
+        assert!(lanes_used || Lanes::detect().is_none());
     }
 }
