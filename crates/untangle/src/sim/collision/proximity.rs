@@ -304,7 +304,7 @@ pub fn screen_pair(
 /// The end of [`screen_pair`] for a pair that none of its cheap tests decided: the verdict from
 /// the closest points at the start, `start` (what the cheap tests learnt, without a distance)
 /// completed with the start distance, and `ccd_settled` as the start gap left it. Screening's
-/// lanes ([`super::rejection`]) call it directly for the pairs they find undecided, with the
+/// lanes (module `rejection`) call it directly for the pairs they find undecided, with the
 /// `start` and `ccd_settled` that [`screen_pair`] would have passed.
 #[allow(clippy::too_many_arguments)]
 pub fn screen_closest(

@@ -11,7 +11,7 @@
 //! testing every candidate again.
 //!
 //! With AVX2, runs of four cloth pairs of one kind go through proximity's cheap rejection tests
-//! in one register ([`rejection`]): about three quarters are decided there (dormant or far, CCD
+//! in one register (module `rejection`): about three quarters are decided there (dormant or far, CCD
 //! settled); the others continue on the scalar path from where the lanes stopped, with the
 //! same verdicts and collisions as screening every pair on the scalar path.
 
