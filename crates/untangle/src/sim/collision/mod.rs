@@ -18,6 +18,7 @@ pub mod broad;
 pub mod impact_zones;
 pub mod impulses;
 pub mod proximity;
+mod rejection;
 pub mod screen;
 
 use super::obstacle::Obstacles;

@@ -268,7 +268,7 @@ pub fn screen_pair(
     if !super::gap_exceeds(gap, scale, dormant_at.min(far).max(ccd_at)) {
         gap = gap.max(super::normal_gap(x, vt));
     }
-    let mut start = StartState {
+    let start = StartState {
         gap,
         scale,
         distance: None,
@@ -298,6 +298,26 @@ pub fn screen_pair(
             return (Verdict::Far, start, settled);
         }
     }
+    screen_closest(scene, p, eps, nodes, x, stats, start, ccd_settled)
+}
+
+/// The end of [`screen_pair`] for a pair that none of its cheap tests decided: the verdict from
+/// the closest points at the start, `start` (what the cheap tests learnt, without a distance)
+/// completed with the start distance, and `ccd_settled` as the start gap left it. Screening's
+/// lanes (module `rejection`) call it directly for the pairs they find undecided, with the
+/// `start` and `ccd_settled` that [`screen_pair`] would have passed.
+#[allow(clippy::too_many_arguments)]
+pub fn screen_closest(
+    scene: &Scene,
+    p: Pair,
+    eps: f64,
+    nodes: &[u32; 4],
+    x: &[Vec3; 4],
+    stats: &[NodeStats; 4],
+    mut start: StartState,
+    ccd_settled: bool,
+) -> (Verdict, StartState, bool) {
+    let (vt, h) = (p.is_vertex_triangle(), scene.h);
     let geom = closest(x, vt);
     start.distance = Some(geom.distance);
     // Only pairs that could come within eps during the step matter.
@@ -360,6 +380,19 @@ const DORMANT: u32 = 1 << 31;
 const FAR: u32 = u32::MAX;
 
 impl NearList {
+    /// Appends a dormant candidate with nodes `nodes` (in candidate order): what
+    /// [`NearList::push`] does with [`Verdict::Dormant`], without moving a whole verdict.
+    #[inline]
+    pub fn push_dormant(&mut self, pair: Pair, nodes: [u32; 4]) {
+        if self.parts.is_empty() {
+            self.parts.push(Part::default());
+        }
+        let part = self.parts.last_mut().expect("a part");
+        debug_assert!(part.dormant.len() < (DORMANT - 1) as usize);
+        part.slots.push((pair, DORMANT | part.dormant.len() as u32));
+        part.dormant.push(nodes);
+    }
+
     /// Appends a candidate's verdict (in candidate order).
     pub fn push(&mut self, pair: Pair, verdict: Verdict) {
         if self.parts.is_empty() {
@@ -368,11 +401,7 @@ impl NearList {
         let part = self.parts.last_mut().expect("a part");
         match verdict {
             Verdict::Far => {}
-            Verdict::Dormant(nodes) => {
-                debug_assert!(part.dormant.len() < (DORMANT - 1) as usize);
-                part.slots.push((pair, DORMANT | part.dormant.len() as u32));
-                part.dormant.push(nodes);
-            }
+            Verdict::Dormant(nodes) => self.push_dormant(pair, nodes),
             Verdict::Near(n) => {
                 debug_assert!(part.nears.len() < DORMANT as usize);
                 part.slots.push((pair, part.nears.len() as u32));
@@ -411,6 +440,39 @@ impl NearList {
         self.slots()
             .filter(|(_, i)| *i != FAR && *i & DORMANT != 0)
             .count()
+    }
+
+    /// Every slot in candidate order, with its dormant pair's nodes or its [`Near`]'s fields
+    /// as bits (tests compare lists with it).
+    #[cfg(test)]
+    pub(super) fn fingerprint(&self) -> Vec<(Pair, Vec<u64>)> {
+        let mut out = Vec::new();
+        for part in &self.parts {
+            for &(pair, i) in &part.slots {
+                let bits = if i != FAR && i & DORMANT != 0 {
+                    part.dormant[(i & !DORMANT) as usize]
+                        .iter()
+                        .map(|&k| k as u64)
+                        .collect()
+                } else if i == FAR {
+                    vec![u64::MAX]
+                } else {
+                    let n = &part.nears[i as usize];
+                    let g = &n.geom;
+                    let mut b: Vec<u64> = [g.distance, n.target, n.mu]
+                        .iter()
+                        .chain(g.normal.iter())
+                        .chain(g.weights.iter())
+                        .map(|x| x.to_bits())
+                        .collect();
+                    b.extend(n.nodes.iter().map(|&k| k as u64));
+                    b.extend([n.active as u64, n.close as u64]);
+                    b
+                };
+                out.push((pair, bits));
+            }
+        }
+        out
     }
 
     /// Every slot, in candidate order.
