@@ -10,6 +10,7 @@ pub mod crossings;
 pub mod culling;
 pub mod curves;
 pub mod input;
+pub mod partner;
 pub mod paths;
 pub mod regions;
 pub mod report;
@@ -106,13 +107,14 @@ pub fn analyze(mesh: &AnalysisMesh, pos: &[Vec3]) -> Result<Analysis, Inconsiste
 }
 
 /// Runs the analysis of `mesh` at positions `pos` (inside rayon's pool,
-/// [`crate::pool::in_pool`]).
+/// [`crate::pool::in_pool`], with a second worker standing by for its parallel parts,
+/// [`partner::with_partner`]).
 pub fn analyze_with(
     mesh: &AnalysisMesh,
     pos: &[Vec3],
     options: &Options,
 ) -> Result<Analysis, Inconsistency> {
-    crate::pool::in_pool(|| analyze_in_pool(mesh, pos, options))
+    crate::pool::in_pool(|| partner::with_partner(|| analyze_in_pool(mesh, pos, options)))
 }
 
 /// [`analyze_with`]'s body.
