@@ -10,7 +10,6 @@ pub mod crossings;
 pub mod culling;
 pub mod curves;
 pub mod input;
-pub mod partner;
 pub mod paths;
 pub mod regions;
 pub mod report;
@@ -107,14 +106,13 @@ pub fn analyze(mesh: &AnalysisMesh, pos: &[Vec3]) -> Result<Analysis, Inconsiste
 }
 
 /// Runs the analysis of `mesh` at positions `pos` (inside rayon's pool,
-/// [`crate::pool::in_pool`], with a second worker standing by for its parallel parts,
-/// [`partner::with_partner`]).
+/// [`crate::pool::in_pool`]).
 pub fn analyze_with(
     mesh: &AnalysisMesh,
     pos: &[Vec3],
     options: &Options,
 ) -> Result<Analysis, Inconsistency> {
-    crate::pool::in_pool(|| partner::with_partner(|| analyze_in_pool(mesh, pos, options)))
+    crate::pool::in_pool(|| analyze_in_pool(mesh, pos, options))
 }
 
 /// [`analyze_with`]'s body.
