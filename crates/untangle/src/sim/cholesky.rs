@@ -1195,7 +1195,8 @@ impl Split {
     /// and triangle, then its rows below in two shares of about equal size (a multiple of 8
     /// rows first: the same operations per row as in one pass) side by side; per top
     /// supernode in reverse order, its columns' updates from the rows below in two shares
-    /// (a multiple of 8 columns first) side by side, then its triangle; the two parts'
+    /// (a multiple of 8 columns first) side by side, then its triangle (the second share's
+    /// task waits for the first one and runs it); the two parts'
     /// backward phases. Each top row's updates are thus still subtracted in supernode order
     /// by one thread at a time: the bits of the sequential substitution. Supernodes with fewer
     /// than `share_min` factor entries below their diagonal block are not shared
@@ -1218,8 +1219,10 @@ impl Split {
                 continue;
             }
             let s = &nodes[k as usize];
-            let h = if s.size * s.m >= share_min {
-                (s.m / 2).next_multiple_of(8)
+            // Half the rows, to the nearest multiple of 8.
+            let h = (s.m / 2 + 4) / 8 * 8;
+            let h = if s.size * s.m >= share_min && 0 < h && h < s.m {
+                h
             } else {
                 s.m
             };
@@ -1251,7 +1254,7 @@ impl Split {
         );
         for &k in top.iter().rev() {
             let s = &nodes[k as usize];
-            let c = (s.size / 2).next_multiple_of(8);
+            let c = (s.size / 2 + 4) / 8 * 8;
             let c = if s.size * s.m >= share_min && c < s.size {
                 c
             } else {
