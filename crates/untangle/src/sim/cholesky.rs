@@ -25,7 +25,11 @@
 //! hanging subtrees of about equal work, which are substituted side by side; the updates of
 //! the top rows are logged and applied in supernode order, so every row sees the same
 //! operations in the same order as in the sequential substitution (the same bits for any thread
-//! count; branch sim10). (A subtree-parallel substitution of our own in double precision, one
+//! count; branch sim10). The top's big supernodes are shared too: forward, their rows below
+//! the diagonal block, backward, their columns' updates from those rows, in two shares run
+//! side by side (each row or column still by one thread, with the same operations), the whole
+//! substitution one task list that two workers take from with spin hand-offs, one rayon join
+//! per solve (branch pd17). (A subtree-parallel substitution of our own in double precision, one
 //! row at a time, was tried on branch sim7 and was not faster than faer's.)
 //!
 //! Pinned (fixed) nodes are eliminated: their rows and columns are replaced by the diagonal, so
@@ -42,6 +46,7 @@ use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use super::pcg::Filter;
 use super::sparse::BsrPattern;
@@ -145,7 +150,8 @@ struct Layout {
 /// a log; then, in supernode order, the top supernodes run and the logged updates are applied.
 /// Backward: the top supernodes in reverse order, then the two parts side by side. A row's
 /// updates are thus subtracted one by one in supernode order, exactly as in the sequential
-/// substitution: the same bits for any thread count.
+/// substitution: the same bits for any thread count. The top phases are shared between the
+/// two threads supernode by supernode ([`Split::tasks`]).
 #[derive(Debug)]
 struct Split {
     /// The supernodes of each part, ascending.
@@ -162,6 +168,8 @@ struct Split {
     /// The forward top phase in supernode order: `(supernode, part)`, part 2 = top (run it),
     /// 0 or 1 = apply its logged updates from that part's log.
     merge: Vec<(u32, u8)>,
+    /// The two-thread schedule ([`Split::tasks`]).
+    tasks: Vec<Step>,
     /// Per part, the permuted rows (ranges `start..end`) whose right-hand side it evaluates
     /// before its forward phase and whose solution it writes out after its backward phase: the
     /// rows of its own supernodes, and a share of the top's rows (dealt supernode by supernode
@@ -215,8 +223,16 @@ enum Phase<'a> {
     BackwardAll,
     /// Forward over part `0` or `1`, logging top updates to the pointer.
     ForwardPart(usize, Rows),
-    /// The forward top phase, with the two parts' logs.
-    ForwardTop([Rows; 2]),
+    /// The forward top phase's merge entries `merge` (see [`Split::merge`]), with the two
+    /// parts' logs; the last entry is a top supernode, of whose rows below only those in
+    /// `rows` are updated.
+    ForwardTop([Rows; 2], (u32, u32), (u32, u32)),
+    /// The rows `.1` below top supernode `.0`'s diagonal block, forward.
+    ForwardRows(u32, (u32, u32)),
+    /// The updates of top supernode `.0`'s columns `.1` from the rows below, backward.
+    BackwardCols(u32, (u32, u32)),
+    /// The triangle of top supernode `.0`, backward.
+    BackwardTriangle(u32),
     /// Backward over the top supernodes.
     BackwardTop,
     /// Backward over part `0` or `1`.
@@ -409,33 +425,65 @@ impl Layout {
             DisjointRows(logs[0].as_mut_ptr()),
             DisjointRows(logs[1].as_mut_ptr()),
         ];
-        // SAFETY: `x` has a row per matrix row and the logs their parts' lengths; the two parts
-        // write disjoint rows and logs and read only rows no other phase running beside them
-        // writes (see `Split`).
-        unsafe {
-            rayon::join(
-                || {
-                    fill(0);
-                    self.run(l, xp, Phase::ForwardPart(0, lp[0]))
-                },
-                || {
-                    fill(1);
-                    self.run(l, xp, Phase::ForwardPart(1, lp[1]))
-                },
-            );
-            self.run(l, xp, Phase::ForwardTop(lp));
-            self.run(l, xp, Phase::BackwardTop);
-            rayon::join(
-                || {
-                    self.run(l, xp, Phase::BackwardPart(0));
-                    out(0)
-                },
-                || {
-                    self.run(l, xp, Phase::BackwardPart(1));
-                    out(1)
-                },
-            );
-        }
+        let tasks = &split.tasks;
+        let done: Vec<AtomicBool> = tasks.iter().map(|_| AtomicBool::new(false)).collect();
+        let next = AtomicUsize::new(0);
+        // Waits until the first `upto` tasks are done (`seen`: how many are known done).
+        let wait = |upto: usize, seen: &mut usize| {
+            let mut spins = 0u32;
+            while *seen < upto {
+                if done[*seen].load(Ordering::Acquire) {
+                    *seen += 1;
+                } else if spins < SPIN_LIMIT {
+                    spins += 1;
+                    std::hint::spin_loop();
+                } else {
+                    std::thread::yield_now();
+                }
+            }
+        };
+        // Takes the next task until none is left; either thread may run any task, so one
+        // worker alone runs them all in order.
+        let worker = || {
+            let mut seen = 0;
+            loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(t) = tasks.get(i) else {
+                    break;
+                };
+                wait(t.after as usize, &mut seen);
+                // SAFETY: `x` has a row per matrix row and the logs their parts' lengths; a
+                // task starts when those it depends on are done (`Step::after`), and two tasks
+                // running side by side write disjoint rows and logs and read no rows the other
+                // writes (see `Split::tasks`).
+                unsafe {
+                    match t.task {
+                        Task::ForwardPart(p) => {
+                            fill(p as usize);
+                            self.run(l, xp, Phase::ForwardPart(p as usize, lp[p as usize]));
+                        }
+                        Task::ForwardTop(merge, rows) => {
+                            self.run(l, xp, Phase::ForwardTop(lp, merge, rows))
+                        }
+                        Task::ForwardRows(k, rows) => self.run(l, xp, Phase::ForwardRows(k, rows)),
+                        Task::BackwardCols(k, cols) => {
+                            self.run(l, xp, Phase::BackwardCols(k, cols))
+                        }
+                        Task::BackwardTop(k, cols) => {
+                            self.run(l, xp, Phase::BackwardCols(k, cols));
+                            wait(i, &mut seen);
+                            self.run(l, xp, Phase::BackwardTriangle(k));
+                        }
+                        Task::BackwardPart(p) => {
+                            self.run(l, xp, Phase::BackwardPart(p as usize));
+                            out(p as usize);
+                        }
+                    }
+                }
+                done[i].store(true, Ordering::Release);
+            }
+        };
+        rayon::join(worker, worker);
     }
 
     /// The substitutions' preconditions (their unsafe row and value accesses rely on them): a
@@ -578,13 +626,17 @@ impl Layout {
                         self.forward::<WIDE>(l, xp.0, &nodes[k], sp.own[k] as usize, lg);
                     }
                 }
-                Phase::ForwardTop(logs) => {
+                Phase::ForwardTop(logs, (a, b), (r0, r1)) => {
                     let sp = self.split.as_ref().expect("split");
-                    for &(k, part) in &sp.merge {
+                    for &(k, part) in &sp.merge[a as usize..b as usize] {
                         let (k, part) = (k as usize, part as usize);
                         let s = &nodes[k];
                         if part == 2 {
-                            self.forward::<WIDE>(l, xp.0, s, s.m, std::ptr::null_mut());
+                            // (Only the last entry is a top supernode.)
+                            self.forward_triangle::<WIDE>(l, xp.0, s);
+                            let rows = r0 as usize..r1 as usize;
+                            let null = std::ptr::null_mut();
+                            self.forward_below::<WIDE>(l, xp.0, s, rows, s.m, null);
                             continue;
                         }
                         let own = sp.own[k] as usize;
@@ -594,6 +646,18 @@ impl Layout {
                             Lane::load(p).sub(Lane::load(lg.add(j))).store(p);
                         }
                     }
+                }
+                Phase::ForwardRows(k, (r0, r1)) => {
+                    let (s, null) = (&nodes[k as usize], std::ptr::null_mut());
+                    let rows = r0 as usize..r1 as usize;
+                    self.forward_below::<WIDE>(l, xp.0, s, rows, s.m, null);
+                }
+                Phase::BackwardCols(k, (c0, c1)) => {
+                    let s = &nodes[k as usize];
+                    self.backward_below::<WIDE>(l, xp.0, s, c0 as usize..c1 as usize);
+                }
+                Phase::BackwardTriangle(k) => {
+                    self.backward_triangle::<WIDE>(l, xp.0, &nodes[k as usize]);
                 }
                 Phase::BackwardTop => {
                     let sp = self.split.as_ref().expect("split");
@@ -626,23 +690,30 @@ impl Layout {
         own: usize,
         log: *mut [f32; 4],
     ) {
-        let (ld, size, start, m) = (s.size + s.m, s.size, s.start, s.m);
+        // SAFETY: the caller's.
+        unsafe {
+            self.forward_triangle::<WIDE>(l, xp, s);
+            self.forward_below::<WIDE>(l, xp, s, 0..s.m, own, log);
+        }
+    }
+
+    /// The dense triangle of supernode `s`'s forward step (its columns solved).
+    ///
+    /// # Safety
+    /// As [`Layout::run`].
+    #[inline(always)]
+    unsafe fn forward_triangle<const WIDE: bool>(
+        &self,
+        l: &[f32],
+        xp: *mut [f32; 4],
+        s: &Supernode,
+    ) {
+        let (ld, size, start) = (s.size + s.m, s.size, s.start);
         let block = &l[s.val..s.val + ld * size];
-        let pat = &self.rows[s.pat..s.pat + m];
-        // SAFETY (all accesses through `xp`): `Layout::new` checked that every row index in
-        // `rows` and every column `start..start + size` is below `n`.
+        // SAFETY (all accesses through `xp`): `Layout::new` checked that every column
+        // `start..start + size` is below `n`.
         let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
         let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
-        // Row `q` below the block: in place, or logged.
-        let update = |q: usize, acc: Lane| {
-            if q < own {
-                let i = pat[q] as usize;
-                put(i, at(i).sub(acc));
-            } else {
-                // SAFETY: the caller's (`q - own < m - own`).
-                unsafe { acc.store(log.add(q - own)) }
-            }
-        };
         // SAFETY (all reads through `w`): the indices are `c * ld + r` with `c < size` and
         // `r < ld`, inside `block`.
         let bp = block.as_ptr();
@@ -680,7 +751,49 @@ impl Layout {
                 put(start + r, at(start + r).sub_scaled(w(c, r), xc));
             }
         }
-        let mut q = 0;
+    }
+
+    /// The rows `rows` below supernode `s`'s diagonal block in its forward step (its columns
+    /// solved): each row's update, summed over the block's columns, subtracted in place for
+    /// the rows before `own`, written to `log` (at `q - own`) for the others. Every row gets
+    /// the same operations whatever the range, as long as `rows.start` is a multiple of 8.
+    ///
+    /// # Safety
+    /// As [`Layout::run`]; `rows` inside `0..s.m`; `log` has room for `s.m - own` rows.
+    #[inline(always)]
+    unsafe fn forward_below<const WIDE: bool>(
+        &self,
+        l: &[f32],
+        xp: *mut [f32; 4],
+        s: &Supernode,
+        rows: std::ops::Range<usize>,
+        own: usize,
+        log: *mut [f32; 4],
+    ) {
+        let (ld, size, start) = (s.size + s.m, s.size, s.start);
+        let block = &l[s.val..s.val + ld * size];
+        let pat = &self.rows[s.pat..s.pat + s.m];
+        let m = rows.end;
+        debug_assert!(rows.start % 8 == 0 && m <= s.m);
+        // SAFETY (all accesses through `xp`): `Layout::new` checked that every row index in
+        // `rows` and every column `start..start + size` is below `n`.
+        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
+        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
+        // Row `q` below the block: in place, or logged.
+        let update = |q: usize, acc: Lane| {
+            if q < own {
+                let i = pat[q] as usize;
+                put(i, at(i).sub(acc));
+            } else {
+                // SAFETY: the caller's (`q - own < s.m - own`).
+                unsafe { acc.store(log.add(q - own)) }
+            }
+        };
+        // SAFETY (all reads through `w`): the indices are `c * ld + r` with `c < size` and
+        // `r < ld`, inside `block`.
+        let bp = block.as_ptr();
+        let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
+        let mut q = rows.start;
         #[cfg(target_arch = "x86_64")]
         if WIDE {
             // The same sums as below, eight rows at a time coordinate by coordinate (the
@@ -742,23 +855,47 @@ impl Layout {
     /// As [`Layout::run`].
     #[inline(always)]
     unsafe fn backward<const WIDE: bool>(&self, l: &[f32], xp: *mut [f32; 4], s: &Supernode) {
-        let (ld, size, start, m) = (s.size + s.m, s.size, s.start, s.m);
-        let block = &l[s.val..s.val + ld * size];
+        // SAFETY: the caller's.
+        unsafe {
+            self.backward_below::<WIDE>(l, xp, s, 0..s.size);
+            self.backward_triangle::<WIDE>(l, xp, s);
+        }
+    }
+
+    /// The updates of supernode `s`'s columns `cols` from the rows below its diagonal block in
+    /// its backward step. Every column gets the same operations whatever the range, as long as
+    /// `cols.start` is a multiple of 8.
+    ///
+    /// # Safety
+    /// As [`Layout::run`]; `cols` inside `0..s.size`.
+    #[inline(always)]
+    unsafe fn backward_below<const WIDE: bool>(
+        &self,
+        l: &[f32],
+        xp: *mut [f32; 4],
+        s: &Supernode,
+        cols: std::ops::Range<usize>,
+    ) {
+        let (ld, start, m) = (s.size + s.m, s.start, s.m);
+        let size = cols.end;
+        debug_assert!(cols.start % 8 == 0 && size <= s.size);
+        let block = &l[s.val..s.val + ld * s.size];
         let pat = &self.rows[s.pat..s.pat + m];
         // SAFETY: as in the forward step.
         let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
         let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
         let bp = block.as_ptr();
         let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
+        let r0 = s.size;
         let mut q = 0;
         // Columns `..c_lo` are done by `backward_cols8` (all rows below).
-        let mut c_lo = 0;
+        let mut c_lo = cols.start;
         #[cfg(target_arch = "x86_64")]
         if WIDE && s.tval != usize::MAX {
-            let stride = row_stride(size);
+            let stride = row_stride(s.size);
             let wt = l[s.tval..s.tval + stride * m].as_ptr();
             let rows: *const u32 = pat.as_ptr();
-            for c in (0..size).step_by(8) {
+            for c in (cols.start..size).step_by(8) {
                 let cols = (size - c).min(8);
                 // SAFETY (both calls): `run_avx` (the only caller with `WIDE`) has AVX; the
                 // row-major copy (checked in `Layout::solve`) has `m` rows of `stride >= c + 8`
@@ -786,7 +923,7 @@ impl Layout {
             // The same sums as below for two columns at once (the halves of 8-wide registers),
             // the last column of an odd block alone.
             while q + 4 <= m {
-                let r = size + q;
+                let r = r0 + q;
                 // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads and writes
                 // are those of `w`, `at` and `put` below.
                 unsafe {
@@ -825,7 +962,7 @@ impl Layout {
         while q + 4 <= m {
             let xr = [0, 1, 2, 3].map(|k| at(pat[q + k] as usize));
             for c in c_lo..size {
-                let r = size + q;
+                let r = r0 + q;
                 let sum = xr[0]
                     .scaled(w(c, r))
                     .add(xr[1].scaled(w(c, r + 1)))
@@ -837,9 +974,29 @@ impl Layout {
         for q in q..m {
             let xr = at(pat[q] as usize);
             for c in c_lo..size {
-                put(start + c, at(start + c).sub_scaled(w(c, size + q), xr));
+                put(start + c, at(start + c).sub_scaled(w(c, r0 + q), xr));
             }
         }
+    }
+
+    /// The triangle of supernode `s`'s backward step (after the updates from the rows below).
+    ///
+    /// # Safety
+    /// As [`Layout::run`].
+    #[inline(always)]
+    unsafe fn backward_triangle<const WIDE: bool>(
+        &self,
+        l: &[f32],
+        xp: *mut [f32; 4],
+        s: &Supernode,
+    ) {
+        let (ld, size, start) = (s.size + s.m, s.size, s.start);
+        let block = &l[s.val..s.val + ld * size];
+        // SAFETY: as in the forward step.
+        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
+        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
+        let bp = block.as_ptr();
+        let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
         for c in (0..size).rev() {
             let mut xc = at(start + c);
             for r in c + 1..size {
@@ -999,7 +1156,132 @@ unsafe fn backward_cols8(
     }
 }
 
+/// One task of a split substitution on two threads (see [`Split::tasks`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Task {
+    /// Part `.0`'s right-hand-side rows and forward phase.
+    ForwardPart(u8),
+    /// The merge entries `.0` of the forward top phase (logged updates applied), ending with
+    /// a top supernode's triangle and its rows `.1` below.
+    ForwardTop((u32, u32), (u32, u32)),
+    /// The rows `.1` below top supernode `.0`, forward.
+    ForwardRows(u32, (u32, u32)),
+    /// Top supernode `.0`'s columns `.1`, backward, from the rows below.
+    BackwardCols(u32, (u32, u32)),
+    /// Top supernode `.0`'s columns `.1`, backward, from the rows below; then, when every
+    /// earlier task is done, its triangle.
+    BackwardTop(u32, (u32, u32)),
+    /// Part `.0`'s backward phase and solution rows.
+    BackwardPart(u8),
+}
+
+/// A task and the number of leading tasks that must be done before it starts.
+#[derive(Clone, Copy, Debug)]
+struct Step {
+    task: Task,
+    after: u32,
+}
+
+/// Spins of a waiting thread before it yields its core at each further check.
+const SPIN_LIMIT: u32 = 128;
+
+/// Top supernodes with fewer factor entries below their diagonal block than this have their
+/// rows below (forward) or their columns (backward) done by one thread.
+const SHARE_MIN: usize = 2048;
+
 impl Split {
+    /// The tasks of the two-thread substitution, in an order in which one thread alone may
+    /// run them: the two parts' forward phases; per top supernode in order, its merge entries
+    /// and triangle, then its rows below in two shares of about equal size (a multiple of 8
+    /// rows first: the same operations per row as in one pass) side by side; per top
+    /// supernode in reverse order, its columns' updates from the rows below in two shares
+    /// (a multiple of 8 columns first) side by side, then its triangle (the second share's
+    /// task waits for the first one and runs it); the two parts'
+    /// backward phases. Each top row's updates are thus still subtracted in supernode order
+    /// by one thread at a time: the bits of the sequential substitution. Supernodes with fewer
+    /// than `share_min` factor entries below their diagonal block are not shared
+    /// ([`SHARE_MIN`] but in tests).
+    fn tasks(nodes: &[Supernode], top: &[u32], merge: &[(u32, u8)], share_min: usize) -> Vec<Step> {
+        let at = |t: &Vec<Step>| t.len() as u32;
+        let mut t = vec![
+            Step {
+                task: Task::ForwardPart(0),
+                after: 0,
+            },
+            Step {
+                task: Task::ForwardPart(1),
+                after: 0,
+            },
+        ];
+        let mut a = 0;
+        for (i, &(k, part)) in merge.iter().enumerate() {
+            if part != 2 {
+                continue;
+            }
+            let s = &nodes[k as usize];
+            // Half the rows, to the nearest multiple of 8.
+            let h = (s.m / 2 + 4) / 8 * 8;
+            let h = if s.size * s.m >= share_min && 0 < h && h < s.m {
+                h
+            } else {
+                s.m
+            };
+            let (m, after) = (s.m as u32, at(&t));
+            let merge = (a, i as u32 + 1);
+            if h < s.m {
+                t.push(Step {
+                    task: Task::ForwardTop(merge, (0, 0)),
+                    after,
+                });
+                for rows in [(0, h as u32), (h as u32, m)] {
+                    t.push(Step {
+                        task: Task::ForwardRows(k, rows),
+                        after: after + 1,
+                    });
+                }
+            } else {
+                t.push(Step {
+                    task: Task::ForwardTop(merge, (0, m)),
+                    after,
+                });
+            }
+            a = i as u32 + 1;
+        }
+        debug_assert_eq!(
+            a as usize,
+            merge.len(),
+            "the merge ends with a top supernode"
+        );
+        for &k in top.iter().rev() {
+            let s = &nodes[k as usize];
+            let c = (s.size / 2 + 4) / 8 * 8;
+            let c = if s.size * s.m >= share_min && c < s.size {
+                c
+            } else {
+                0
+            };
+            let after = at(&t);
+            if c > 0 {
+                t.push(Step {
+                    task: Task::BackwardCols(k, (0, c as u32)),
+                    after,
+                });
+            }
+            t.push(Step {
+                task: Task::BackwardTop(k, (c as u32, s.size as u32)),
+                after,
+            });
+        }
+        let after = at(&t);
+        for p in 0..2 {
+            t.push(Step {
+                task: Task::BackwardPart(p),
+                after,
+            });
+        }
+        t
+    }
+
     /// The schedule for the supernodes `nodes` (rows below their blocks in `rows`, `n`
     /// matrix rows), or `None` when it would not be worth a second thread (small systems,
     /// a tree without two heavy independent branches). Estimated work of a supernode: its
@@ -1155,7 +1437,11 @@ impl Split {
                 merge.push((k as u32, p as u8));
             }
         }
+        if merge.last().is_some_and(|&(_, p)| p != TOP) {
+            return None;
+        }
         Some(Split {
+            tasks: Split::tasks(nodes, &top, &merge, SHARE_MIN),
             parts,
             top,
             own,
@@ -2262,9 +2548,22 @@ mod tests {
                 ScalarCholesky::with_threshold(&pattern, SupernodalThreshold::FORCE_SUPERNODAL)
                     .unwrap();
             assert!(chol.factor(&pattern, &values, &fixed));
+            // Every top supernode with enough rows (columns) shared between the threads.
+            let layout = chol.layout.as_mut().unwrap();
+            let split = layout.split.as_mut().expect("a split at this size");
+            split.tasks = Split::tasks(&layout.nodes, &split.top, &split.merge, 0);
             let layout = chol.layout.as_ref().unwrap();
             let split = layout.split.as_ref().expect("a split at this size");
             assert!(split.parts.iter().all(|p| !p.is_empty()) && !split.top.is_empty());
+            // Top rows and columns shared between the threads.
+            assert!(split
+                .tasks
+                .iter()
+                .any(|t| matches!(t.task, Task::ForwardRows(..))));
+            assert!(split
+                .tasks
+                .iter()
+                .any(|t| matches!(t.task, Task::BackwardCols(..))));
             assert!(layout.nodes.iter().any(|s| s.size == 3 && s.m >= 4));
             assert!(layout
                 .nodes
@@ -2346,6 +2645,107 @@ mod tests {
             let scale = exact.iter().fold(0.0f64, |m, v| m.max(v.amax()));
             for i in 0..n {
                 assert!((want[i] - exact[i]).amax() <= 1e-4 * scale, "row {i}");
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        /// The two-thread schedule of a split substitution ([`Split::tasks`], the top
+        /// supernodes' rows and columns shared between the threads) on random sparse SPD
+        /// patterns (grid graphs of random size with random extra edges between nearby nodes,
+        /// random fixed nodes): the same bits as the plain sequential substitution, on one
+        /// thread and on two (repeated, so the threads take the tasks in varying order); every
+        /// task list is one a single thread can run in order, and top rows are shared only in
+        /// shares starting at a multiple of 8.
+        #[test]
+        fn shared_top_schedule_gives_the_sequential_bits(
+            seed in 0u64..1000, w in 40usize..64, h in 40usize..64, extra in 0usize..400,
+            share_all in any::<bool>(),
+        ) {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let n = w * h;
+            let id = |x: usize, y: usize| (y * w + x) as u32;
+            let mut pairs = Vec::new();
+            for y in 0..h {
+                for x in 0..w {
+                    for (dx, dy) in [(1, 0), (0, 1), (1, 1)] {
+                        if x + dx < w && y + dy < h {
+                            pairs.push((id(x, y), id(x + dx, y + dy)));
+                        }
+                    }
+                }
+            }
+            for _ in 0..extra {
+                let (x, y) = (rng.random_range(0..w), rng.random_range(0..h));
+                let (x2, y2) = (
+                    (x + rng.random_range(0..4)).min(w - 1),
+                    (y + rng.random_range(0..4)).min(h - 1),
+                );
+                pairs.push((id(x, y), id(x2, y2)));
+            }
+            let sym: Vec<(u32, u32)> = pairs
+                .iter()
+                .filter(|(a, b)| a != b)
+                .flat_map(|&(a, b)| [(a, b), (b, a)])
+                .collect();
+            let pattern = BsrPattern::from_pairs(n, sym);
+            let (_, values, fixed) = random_spd(&pattern, &mut rng, -1.0..0.0, 0.05, 0.1..1.0);
+            let r = random_rhs(&mut rng, n);
+            let mut chol =
+                ScalarCholesky::with_threshold(&pattern, SupernodalThreshold::FORCE_SUPERNODAL)
+                    .unwrap();
+            prop_assert!(chol.factor(&pattern, &values, &fixed));
+            if share_all {
+                // Every top supernode with rows (columns) enough for two shares shared.
+                let layout = chol.layout.as_mut().unwrap();
+                let split = layout.split.as_mut().expect("a split at this size");
+                split.tasks = Split::tasks(&layout.nodes, &split.top, &split.merge, 0);
+            }
+            let layout = chol.layout.as_ref().unwrap();
+            let split = layout.split.as_ref().expect("a split at this size");
+            // The schedule: dependencies only on earlier tasks, shares aligned.
+            for (i, t) in split.tasks.iter().enumerate() {
+                prop_assert!(t.after as usize <= i);
+                match t.task {
+                    Task::ForwardRows(k, (a, b)) => {
+                        prop_assert!(a % 8 == 0 && a < b && b as usize <= layout.nodes[k as usize].m);
+                    }
+                    Task::BackwardCols(k, (a, b)) | Task::BackwardTop(k, (a, b)) => {
+                        prop_assert!(a % 8 == 0 && a <= b && b as usize <= layout.nodes[k as usize].size);
+                    }
+                    _ => {}
+                }
+            }
+            let mut x: Vec<[f32; 4]> = layout
+                .fwd
+                .iter()
+                .map(|&f| {
+                    let v = r[f as usize];
+                    [v.x as f32, v.y as f32, v.z as f32, 0.0]
+                })
+                .collect();
+            // The oracle: the plain sequential substitution, lane by lane.
+            // SAFETY: a row per matrix row, one thread.
+            unsafe {
+                layout.run_lanes::<false>(&chol.factor32, DisjointRows(x.as_mut_ptr()), Phase::All)
+            };
+            let mut want = vec![Vec3::zeros(); n];
+            for (xi, &f) in x.iter().zip(&layout.fwd) {
+                want[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
+            }
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                for _ in 0..3 {
+                    let mut got = vec![Vec3::zeros(); n];
+                    pool.install(|| chol.solve_increment_with(|i| r[i], &mut got));
+                    for i in 0..n {
+                        for c in 0..3 {
+                            prop_assert_eq!(got[i][c].to_bits(), want[i][c].to_bits(),
+                                "{} threads, row {}", threads, i);
+                        }
+                    }
+                }
             }
         }
     }
