@@ -2533,6 +2533,30 @@ mod tests {
     /// pool of one thread and of two; and against faer's double-precision solve within
     /// single-precision rounding. Grids large enough for a split, with fixed nodes, and with
     /// supernodes of two and more columns over four and more rows below (the 8-wide loops').
+    /// The oracle of the split substitution's tests: the plain sequential substitution of
+    /// `r` with a supernodal single-precision factor, one row's four lanes at a time (not the
+    /// 8-wide AVX loops the solve uses when the CPU has AVX).
+    fn sequential_substitution(chol: &ScalarCholesky, r: &[Vec3]) -> Vec<Vec3> {
+        let layout = chol.layout.as_ref().expect("a supernodal factor");
+        let mut x: Vec<[f32; 4]> = layout
+            .fwd
+            .iter()
+            .map(|&f| {
+                let v = r[f as usize];
+                [v.x as f32, v.y as f32, v.z as f32, 0.0]
+            })
+            .collect();
+        // SAFETY: a row per matrix row, one thread.
+        unsafe {
+            layout.run_lanes::<false>(&chol.factor32, DisjointRows(x.as_mut_ptr()), Phase::All)
+        };
+        let mut want = vec![Vec3::zeros(); r.len()];
+        for (xi, &f) in x.iter().zip(&layout.fwd) {
+            want[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
+        }
+        want
+    }
+
     #[test]
     fn split_substitution_equals_the_sequential_one() {
         for (seed, (w, h)) in [(40usize, 40usize), (70, 25), (33, 51)]
@@ -2579,24 +2603,7 @@ mod tests {
                 .iter()
                 .any(|s| s.size > 8 && s.size % 8 != 0 && s.m >= 4));
             assert!(layout.nodes.iter().any(|s| s.size >= 8 && s.m % 4 != 0));
-            let mut x: Vec<[f32; 4]> = layout
-                .fwd
-                .iter()
-                .map(|&f| {
-                    let v = r[f as usize];
-                    [v.x as f32, v.y as f32, v.z as f32, 0.0]
-                })
-                .collect();
-            // The oracle: the plain sequential substitution, one row's four lanes at a time
-            // (not the 8-wide AVX loops the solve uses when the CPU has AVX).
-            // SAFETY: a row per matrix row, one thread.
-            unsafe {
-                layout.run_lanes::<false>(&chol.factor32, DisjointRows(x.as_mut_ptr()), Phase::All)
-            };
-            let mut want = vec![Vec3::zeros(); n];
-            for (xi, &f) in x.iter().zip(&layout.fwd) {
-                want[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
-            }
+            let want = sequential_substitution(&chol, &r);
             for threads in [1, 2] {
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
@@ -2717,23 +2724,7 @@ mod tests {
                     _ => {}
                 }
             }
-            let mut x: Vec<[f32; 4]> = layout
-                .fwd
-                .iter()
-                .map(|&f| {
-                    let v = r[f as usize];
-                    [v.x as f32, v.y as f32, v.z as f32, 0.0]
-                })
-                .collect();
-            // The oracle: the plain sequential substitution, lane by lane.
-            // SAFETY: a row per matrix row, one thread.
-            unsafe {
-                layout.run_lanes::<false>(&chol.factor32, DisjointRows(x.as_mut_ptr()), Phase::All)
-            };
-            let mut want = vec![Vec3::zeros(); n];
-            for (xi, &f) in x.iter().zip(&layout.fwd) {
-                want[f as usize] = Vec3::new(xi[0] as f64, xi[1] as f64, xi[2] as f64);
-            }
+            let want = sequential_substitution(&chol, &r);
             for threads in [1, 2] {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
                 for _ in 0..3 {
