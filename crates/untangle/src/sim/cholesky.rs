@@ -123,6 +123,90 @@ fn row_stride(size: usize) -> usize {
     size.next_multiple_of(8)
 }
 
+/// A supernode's block of factor values and the iterate's rows, as the pieces of its
+/// substitution steps read and write them ([`Layout::forward_triangle`],
+/// [`Layout::forward_below`], [`Layout::backward_below`], [`Layout::backward_triangle`]): raw
+/// pointers, no bounds checks, the accessors inlined into their (AVX) caller.
+#[derive(Clone, Copy)]
+struct NodeView {
+    /// Values per column of the block: the diagonal block's `size`, then the `m` rows below.
+    ld: usize,
+    /// Columns of the supernode.
+    size: usize,
+    /// Its first column (and row of the iterate).
+    start: usize,
+    /// The block, column-major (`ld * size` values).
+    bp: *const f32,
+    /// The iterate, a row per matrix row.
+    xp: *mut [f32; 4],
+}
+
+impl NodeView {
+    /// The view of supernode `s`, whose block is in `l` (checked here), with the iterate `xp`.
+    ///
+    /// # Safety
+    /// As [`Layout::run`]; and the caller passes to [`NodeView::at`], [`NodeView::put`] and
+    /// [`NodeView::row`] only rows below `n` (the supernode's columns and its rows below,
+    /// which `Layout::new` checked), to [`NodeView::w`] and [`NodeView::wp`] only `(c, r)` with
+    /// `c < size` and `r < ld`, and reads no further through `wp` than the block's end.
+    #[inline(always)]
+    unsafe fn new(l: &[f32], xp: *mut [f32; 4], s: &Supernode) -> NodeView {
+        let ld = s.size + s.m;
+        let block = &l[s.val..s.val + ld * s.size];
+        NodeView {
+            ld,
+            size: s.size,
+            start: s.start,
+            bp: block.as_ptr(),
+            xp,
+        }
+    }
+
+    /// Row `i` of the iterate.
+    #[inline(always)]
+    fn at(self, i: usize) -> Lane {
+        // SAFETY: `NodeView::new`'s caller's (`i < n`).
+        unsafe { Lane::load(self.xp.add(i)) }
+    }
+
+    /// Writes row `i` of the iterate.
+    #[inline(always)]
+    fn put(self, i: usize, v: Lane) {
+        // SAFETY: `NodeView::new`'s caller's (`i < n`).
+        unsafe { v.store(self.xp.add(i)) }
+    }
+
+    /// The block's value in column `c`, row `r`.
+    #[inline(always)]
+    fn w(self, c: usize, r: usize) -> f32 {
+        debug_assert!(c < self.size && r < self.ld);
+        // SAFETY: `NodeView::new`'s caller's (`c * ld + r < ld * size`).
+        unsafe { *self.bp.add(c * self.ld + r) }
+    }
+
+    /// Where row `i` of the iterate is (for the AVX loops).
+    ///
+    /// # Safety
+    /// `i < n`.
+    #[inline(always)]
+    unsafe fn row(self, i: usize) -> *mut [f32; 4] {
+        // SAFETY: the caller's.
+        unsafe { self.xp.add(i) }
+    }
+
+    /// Where the block's value in column `c`, row `r` is (for the AVX loops, which load
+    /// several adjacent values).
+    ///
+    /// # Safety
+    /// `c < size` and `r < ld`.
+    #[inline(always)]
+    unsafe fn wp(self, c: usize, r: usize) -> *const f32 {
+        debug_assert!(c < self.size && r < self.ld);
+        // SAFETY: the caller's.
+        unsafe { self.bp.add(c * self.ld + r) }
+    }
+}
+
 /// faer's supernodal structure in plain arrays, with the fill-reducing permutation.
 #[derive(Debug)]
 struct Layout {
@@ -633,10 +717,11 @@ impl Layout {
                         let s = &nodes[k];
                         if part == 2 {
                             // (Only the last entry is a top supernode.)
-                            self.forward_triangle::<WIDE>(l, xp.0, s);
+                            let v = NodeView::new(l, xp.0, s);
+                            self.forward_triangle::<WIDE>(v);
                             let rows = r0 as usize..r1 as usize;
                             let null = std::ptr::null_mut();
-                            self.forward_below::<WIDE>(l, xp.0, s, rows, s.m, null);
+                            self.forward_below::<WIDE>(v, s, rows, s.m, null);
                             continue;
                         }
                         let own = sp.own[k] as usize;
@@ -650,14 +735,14 @@ impl Layout {
                 Phase::ForwardRows(k, (r0, r1)) => {
                     let (s, null) = (&nodes[k as usize], std::ptr::null_mut());
                     let rows = r0 as usize..r1 as usize;
-                    self.forward_below::<WIDE>(l, xp.0, s, rows, s.m, null);
+                    self.forward_below::<WIDE>(NodeView::new(l, xp.0, s), s, rows, s.m, null);
                 }
                 Phase::BackwardCols(k, (c0, c1)) => {
-                    let s = &nodes[k as usize];
-                    self.backward_below::<WIDE>(l, xp.0, s, c0 as usize..c1 as usize);
+                    let (s, cols) = (&nodes[k as usize], c0 as usize..c1 as usize);
+                    self.backward_below::<WIDE>(l, NodeView::new(l, xp.0, s), s, cols);
                 }
                 Phase::BackwardTriangle(k) => {
-                    self.backward_triangle::<WIDE>(l, xp.0, &nodes[k as usize]);
+                    self.backward_triangle::<WIDE>(NodeView::new(l, xp.0, &nodes[k as usize]));
                 }
                 Phase::BackwardTop => {
                     let sp = self.split.as_ref().expect("split");
@@ -692,46 +777,34 @@ impl Layout {
     ) {
         // SAFETY: the caller's.
         unsafe {
-            self.forward_triangle::<WIDE>(l, xp, s);
-            self.forward_below::<WIDE>(l, xp, s, 0..s.m, own, log);
+            let v = NodeView::new(l, xp, s);
+            self.forward_triangle::<WIDE>(v);
+            self.forward_below::<WIDE>(v, s, 0..s.m, own, log);
         }
     }
 
-    /// The dense triangle of supernode `s`'s forward step (its columns solved).
+    /// The dense triangle of the forward step of `v`'s supernode (its columns solved).
     ///
     /// # Safety
-    /// As [`Layout::run`].
+    /// As [`NodeView::new`] for `v` (the rows read and written are the columns, the weights
+    /// those of the diagonal block).
     #[inline(always)]
-    unsafe fn forward_triangle<const WIDE: bool>(
-        &self,
-        l: &[f32],
-        xp: *mut [f32; 4],
-        s: &Supernode,
-    ) {
-        let (ld, size, start) = (s.size + s.m, s.size, s.start);
-        let block = &l[s.val..s.val + ld * size];
-        // SAFETY (all accesses through `xp`): `Layout::new` checked that every column
-        // `start..start + size` is below `n`.
-        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
-        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
-        // SAFETY (all reads through `w`): the indices are `c * ld + r` with `c < size` and
-        // `r < ld`, inside `block`.
-        let bp = block.as_ptr();
-        let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
+    unsafe fn forward_triangle<const WIDE: bool>(&self, v: NodeView) {
+        let (size, start) = (v.size, v.start);
         for c in 0..size {
-            let xc = at(start + c).div(w(c, c));
-            put(start + c, xc);
+            let xc = v.at(start + c).div(v.w(c, c));
+            v.put(start + c, xc);
             let mut r = c + 1;
             #[cfg(target_arch = "x86_64")]
             if WIDE {
                 // The same updates two rows per 8-wide register (rows `start + r` and
                 // `start + r + 1` are adjacent, and so are their weights in column `c`).
                 // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads and writes
-                // are those of `w`, `at` and `put` below (`r + 1 < size`).
+                // are those of `v.w`, `v.at` and `v.put` below (`r + 1 < size`).
                 unsafe {
-                    let xw = Wide::broadcast(xp.add(start + c));
+                    let xw = Wide::broadcast(v.row(start + c));
                     while r + 4 <= size {
-                        let (p, wr) = (xp.add(start + r), bp.add(c * ld + r));
+                        let (p, wr) = (v.row(start + r), v.wp(c, r));
                         let a = Wide::load(p).sub(Wide::pair(wr).mul(xw));
                         let b = Wide::load(p.add(2)).sub(Wide::pair(wr.add(2)).mul(xw));
                         a.store(p);
@@ -739,16 +812,14 @@ impl Layout {
                         r += 4;
                     }
                     if r + 2 <= size {
-                        let p = xp.add(start + r);
-                        Wide::load(p)
-                            .sub(Wide::pair(bp.add(c * ld + r)).mul(xw))
-                            .store(p);
+                        let p = v.row(start + r);
+                        Wide::load(p).sub(Wide::pair(v.wp(c, r)).mul(xw)).store(p);
                         r += 2;
                     }
                 }
             }
             for r in r..size {
-                put(start + r, at(start + r).sub_scaled(w(c, r), xc));
+                v.put(start + r, v.at(start + r).sub_scaled(v.w(c, r), xc));
             }
         }
     }
@@ -759,40 +830,32 @@ impl Layout {
     /// the same operations whatever the range, as long as `rows.start` is a multiple of 8.
     ///
     /// # Safety
-    /// As [`Layout::run`]; `rows` inside `0..s.m`; `log` has room for `s.m - own` rows.
+    /// As [`NodeView::new`] for `v`, the view of `s` (the rows read and written are the
+    /// columns and the rows below, the weights `(c, size + q)` with `q < m`); `rows` inside
+    /// `0..s.m`; `log` has room for `s.m - own` rows.
     #[inline(always)]
     unsafe fn forward_below<const WIDE: bool>(
         &self,
-        l: &[f32],
-        xp: *mut [f32; 4],
+        v: NodeView,
         s: &Supernode,
         rows: std::ops::Range<usize>,
         own: usize,
         log: *mut [f32; 4],
     ) {
-        let (ld, size, start) = (s.size + s.m, s.size, s.start);
-        let block = &l[s.val..s.val + ld * size];
+        let (size, start) = (v.size, v.start);
         let pat = &self.rows[s.pat..s.pat + s.m];
         let m = rows.end;
         debug_assert!(rows.start % 8 == 0 && m <= s.m);
-        // SAFETY (all accesses through `xp`): `Layout::new` checked that every row index in
-        // `rows` and every column `start..start + size` is below `n`.
-        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
-        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
         // Row `q` below the block: in place, or logged.
         let update = |q: usize, acc: Lane| {
             if q < own {
                 let i = pat[q] as usize;
-                put(i, at(i).sub(acc));
+                v.put(i, v.at(i).sub(acc));
             } else {
                 // SAFETY: the caller's (`q - own < s.m - own`).
                 unsafe { acc.store(log.add(q - own)) }
             }
         };
-        // SAFETY (all reads through `w`): the indices are `c * ld + r` with `c < size` and
-        // `r < ld`, inside `block`.
-        let bp = block.as_ptr();
-        let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
         let mut q = rows.start;
         #[cfg(target_arch = "x86_64")]
         if WIDE {
@@ -800,8 +863,8 @@ impl Layout {
             // rows' weights in column `c` are adjacent: one load per column and coordinate).
             while q + 8 <= m {
                 // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads are those
-                // of `w` and `at` below for rows `q..q + 8` (`q + 8 <= m`).
-                let acc = unsafe { forward_rows8(bp.add(size + q), ld, size, xp.add(start)) };
+                // of `v.w` and `v.at` below for rows `q..q + 8` (`q + 8 <= m`).
+                let acc = unsafe { forward_rows8(v.wp(0, size + q), v.ld, size, v.row(start)) };
                 for (k, a) in acc.iter().enumerate() {
                     update(q + k, *a);
                 }
@@ -810,12 +873,12 @@ impl Layout {
             // Rows `q, q + 1` and `q + 2, q + 3` in the halves of two 8-wide accumulators.
             while q + 4 <= m {
                 // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads are those
-                // of `w` and `at` below.
+                // of `v.w` and `v.at` below.
                 let acc = unsafe {
                     let mut acc = [Wide::zero(); 2];
                     for c in 0..size {
-                        let xc = Wide::broadcast(xp.add(start + c));
-                        let wq = bp.add(c * ld + size + q);
+                        let xc = Wide::broadcast(v.row(start + c));
+                        let wq = v.wp(c, size + q);
                         acc[0] = acc[0].add(Wide::spread(wq, 0).mul(xc));
                         acc[1] = acc[1].add(Wide::spread(wq, 2).mul(xc));
                     }
@@ -830,9 +893,9 @@ impl Layout {
         while q + 4 <= m {
             let mut acc = [Lane::zero(); 4];
             for c in 0..size {
-                let xc = at(start + c);
+                let xc = v.at(start + c);
                 for (k, a) in acc.iter_mut().enumerate() {
-                    *a = a.add_scaled(w(c, size + q + k), xc);
+                    *a = a.add_scaled(v.w(c, size + q + k), xc);
                 }
             }
             for (k, a) in acc.iter().enumerate() {
@@ -843,7 +906,7 @@ impl Layout {
         for q in q..m {
             let mut acc = Lane::zero();
             for c in 0..size {
-                acc = acc.add_scaled(w(c, size + q), at(start + c));
+                acc = acc.add_scaled(v.w(c, size + q), v.at(start + c));
             }
             update(q, acc);
         }
@@ -857,8 +920,9 @@ impl Layout {
     unsafe fn backward<const WIDE: bool>(&self, l: &[f32], xp: *mut [f32; 4], s: &Supernode) {
         // SAFETY: the caller's.
         unsafe {
-            self.backward_below::<WIDE>(l, xp, s, 0..s.size);
-            self.backward_triangle::<WIDE>(l, xp, s);
+            let v = NodeView::new(l, xp, s);
+            self.backward_below::<WIDE>(l, v, s, 0..s.size);
+            self.backward_triangle::<WIDE>(v);
         }
     }
 
@@ -867,25 +931,20 @@ impl Layout {
     /// `cols.start` is a multiple of 8.
     ///
     /// # Safety
-    /// As [`Layout::run`]; `cols` inside `0..s.size`.
+    /// As [`NodeView::new`] for `v`, the view of `s` in `l` (as in the forward step); `cols`
+    /// inside `0..s.size`.
     #[inline(always)]
     unsafe fn backward_below<const WIDE: bool>(
         &self,
         l: &[f32],
-        xp: *mut [f32; 4],
+        v: NodeView,
         s: &Supernode,
         cols: std::ops::Range<usize>,
     ) {
-        let (ld, start, m) = (s.size + s.m, s.start, s.m);
+        let (start, m, xp) = (v.start, s.m, v.xp);
         let size = cols.end;
         debug_assert!(cols.start % 8 == 0 && size <= s.size);
-        let block = &l[s.val..s.val + ld * s.size];
         let pat = &self.rows[s.pat..s.pat + m];
-        // SAFETY: as in the forward step.
-        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
-        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
-        let bp = block.as_ptr();
-        let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
         let r0 = s.size;
         let mut q = 0;
         // Columns `..c_lo` are done by `backward_cols8` (all rows below).
@@ -903,15 +962,15 @@ impl Layout {
                 // `start + c..start + c + cols` are columns of this supernode (the others of
                 // the last block are zero rows of a local copy, their weights zeros).
                 if cols == 8 {
-                    unsafe { backward_cols8(wt.add(c), stride, rows, m, xp, xp.add(start + c)) };
+                    unsafe { backward_cols8(wt.add(c), stride, rows, m, xp, v.row(start + c)) };
                 } else {
                     let mut part = [[0.0f32; 4]; 8];
                     for (k, row) in part.iter_mut().take(cols).enumerate() {
-                        *row = unsafe { *xp.add(start + c + k) };
+                        *row = unsafe { *v.row(start + c + k) };
                     }
                     unsafe { backward_cols8(wt.add(c), stride, rows, m, xp, part.as_mut_ptr()) };
                     for (k, row) in part.iter().take(cols).enumerate() {
-                        unsafe { *xp.add(start + c + k) = *row };
+                        unsafe { *v.row(start + c + k) = *row };
                     }
                 }
             }
@@ -925,84 +984,73 @@ impl Layout {
             while q + 4 <= m {
                 let r = r0 + q;
                 // SAFETY: `run_avx` (the only caller with `WIDE`) has AVX; the reads and writes
-                // are those of `w`, `at` and `put` below.
+                // are those of `v.w`, `v.at` and `v.put` below.
                 unsafe {
                     // (No closures here: they would not inherit this function's AVX.)
                     let xr = [
-                        Wide::broadcast(xp.add(pat[q] as usize)),
-                        Wide::broadcast(xp.add(pat[q + 1] as usize)),
-                        Wide::broadcast(xp.add(pat[q + 2] as usize)),
-                        Wide::broadcast(xp.add(pat[q + 3] as usize)),
+                        Wide::broadcast(v.row(pat[q] as usize)),
+                        Wide::broadcast(v.row(pat[q + 1] as usize)),
+                        Wide::broadcast(v.row(pat[q + 2] as usize)),
+                        Wide::broadcast(v.row(pat[q + 3] as usize)),
                     ];
                     let mut c = c_lo;
                     while c + 2 <= size {
-                        let wc = bp.add(c * ld + r);
-                        let wn = bp.add((c + 1) * ld + r);
+                        let (wc, wn) = (v.wp(c, r), v.wp(c + 1, r));
                         let f = |k: i32| Wide::pick(wc, wn, k);
                         let sum = xr[0]
                             .mul(f(0))
                             .add(xr[1].mul(f(1)))
                             .add(xr[2].mul(f(2)).add(xr[3].mul(f(3))));
-                        let p = xp.add(start + c);
+                        let p = v.row(start + c);
                         Wide::load(p).sub(sum).store(p);
                         c += 2;
                     }
                     let xr = [xr[0].low(), xr[1].low(), xr[2].low(), xr[3].low()];
                     for c in c..size {
                         let sum = xr[0]
-                            .scaled(w(c, r))
-                            .add(xr[1].scaled(w(c, r + 1)))
-                            .add(xr[2].scaled(w(c, r + 2)).add(xr[3].scaled(w(c, r + 3))));
-                        put(start + c, at(start + c).sub(sum));
+                            .scaled(v.w(c, r))
+                            .add(xr[1].scaled(v.w(c, r + 1)))
+                            .add(xr[2].scaled(v.w(c, r + 2)).add(xr[3].scaled(v.w(c, r + 3))));
+                        v.put(start + c, v.at(start + c).sub(sum));
                     }
                 }
                 q += 4;
             }
         }
         while q + 4 <= m {
-            let xr = [0, 1, 2, 3].map(|k| at(pat[q + k] as usize));
+            let xr = [0, 1, 2, 3].map(|k| v.at(pat[q + k] as usize));
             for c in c_lo..size {
                 let r = r0 + q;
                 let sum = xr[0]
-                    .scaled(w(c, r))
-                    .add(xr[1].scaled(w(c, r + 1)))
-                    .add(xr[2].scaled(w(c, r + 2)).add(xr[3].scaled(w(c, r + 3))));
-                put(start + c, at(start + c).sub(sum));
+                    .scaled(v.w(c, r))
+                    .add(xr[1].scaled(v.w(c, r + 1)))
+                    .add(xr[2].scaled(v.w(c, r + 2)).add(xr[3].scaled(v.w(c, r + 3))));
+                v.put(start + c, v.at(start + c).sub(sum));
             }
             q += 4;
         }
         for q in q..m {
-            let xr = at(pat[q] as usize);
+            let xr = v.at(pat[q] as usize);
             for c in c_lo..size {
-                put(start + c, at(start + c).sub_scaled(w(c, r0 + q), xr));
+                v.put(start + c, v.at(start + c).sub_scaled(v.w(c, r0 + q), xr));
             }
         }
     }
 
-    /// The triangle of supernode `s`'s backward step (after the updates from the rows below).
+    /// The triangle of the backward step of `v`'s supernode (after the updates from the rows
+    /// below).
     ///
     /// # Safety
-    /// As [`Layout::run`].
+    /// As [`NodeView::new`] for `v` (as in the forward step).
     #[inline(always)]
-    unsafe fn backward_triangle<const WIDE: bool>(
-        &self,
-        l: &[f32],
-        xp: *mut [f32; 4],
-        s: &Supernode,
-    ) {
-        let (ld, size, start) = (s.size + s.m, s.size, s.start);
-        let block = &l[s.val..s.val + ld * size];
-        // SAFETY: as in the forward step.
-        let at = |i: usize| -> Lane { unsafe { Lane::load(xp.add(i)) } };
-        let put = |i: usize, v: Lane| unsafe { v.store(xp.add(i)) };
-        let bp = block.as_ptr();
-        let w = |c: usize, r: usize| -> f32 { unsafe { *bp.add(c * ld + r) } };
+    unsafe fn backward_triangle<const WIDE: bool>(&self, v: NodeView) {
+        let (size, start) = (v.size, v.start);
         for c in (0..size).rev() {
-            let mut xc = at(start + c);
+            let mut xc = v.at(start + c);
             for r in c + 1..size {
-                xc = xc.sub_scaled(w(c, r), at(start + r));
+                xc = xc.sub_scaled(v.w(c, r), v.at(start + r));
             }
-            put(start + c, xc.div(w(c, c)));
+            v.put(start + c, xc.div(v.w(c, c)));
         }
     }
 }
