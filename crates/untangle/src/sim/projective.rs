@@ -1305,28 +1305,8 @@ mod tests {
                 },
             );
             let n = s.x0.len();
-            let values = s.system.system_values(&s.inertia, s.damping);
-            let mut chol = ScalarCholesky::new(s.system.pattern()).unwrap();
-            assert!(chol.factor(s.system.pattern(), &values, &s.fixed));
-            let filter: Vec<Filter> = s
-                .fixed
-                .iter()
-                .map(|&f| if f { Filter::Fixed } else { Filter::Free })
-                .collect();
-            let extra = vec![Vec3::zeros(); n];
-            let problem = StepProblem {
-                x0: &s.x0,
-                y: &s.y,
-                inertia: &s.inertia,
-                damping: s.damping,
-                contacts: None,
-                low_rank: None,
-                values: &values,
-                exact: true,
-                rhs_extra: &extra,
-                filter: &filter,
-                targets: &s.x0,
-            };
+            let setup = Plain::new(&s, 1.0);
+            let (problem, chol) = (setup.problem(&s), &setup.chol);
             assert!(Projective::fuses_extrapolation(&problem));
             let rhs = s.system.constant_rhs(&problem);
             let x: Vec<Vec3> = (0..n)
@@ -1359,7 +1339,7 @@ mod tests {
                 pool.install(|| {
                     let mut plain = x.clone();
                     s.system
-                        .global_step(&problem, &rhs, &chol, settings, &mut plain, None, &mut work);
+                        .global_step(&problem, &rhs, chol, settings, &mut plain, None, &mut work);
                     let want: Vec<Vec3> = (0..n)
                         .map(|i| (plain[i] - prev[i]) * omega + prev[i])
                         .collect();
@@ -1367,7 +1347,7 @@ mod tests {
                         let mut got = x.clone();
                         let mut save = vec![Vec3::zeros(); n];
                         s.system.global_step_extrapolated(
-                            &problem, &rhs, &chol, &mut got, &work, p, &mut save,
+                            &problem, &rhs, chol, &mut got, &work, p, &mut save,
                         );
                         for i in 0..n {
                             for c in 0..3 {
@@ -1429,38 +1409,63 @@ mod tests {
         }
     }
 
+    /// What a [`StepProblem`] of a [`Small`] sheet without contacts refers to: the system's
+    /// values, the factor of the system with the inertia scaled by `factor_scale` (1: exact),
+    /// the pinned vertices' filter and zero extra right-hand sides.
+    struct Plain {
+        values: Vec<f64>,
+        chol: ScalarCholesky,
+        exact: bool,
+        filter: Vec<Filter>,
+        extra: Vec<Vec3>,
+    }
+
+    impl Plain {
+        fn new(s: &Small, factor_scale: f64) -> Plain {
+            let values = s.system.system_values(&s.inertia, s.damping);
+            let fi: Vec<f64> = s.inertia.iter().map(|m| m * factor_scale).collect();
+            let mut chol = ScalarCholesky::new(s.system.pattern()).unwrap();
+            let factored = s.system.system_values(&fi, s.damping);
+            assert!(chol.factor(s.system.pattern(), &factored, &s.fixed));
+            let filter = s
+                .fixed
+                .iter()
+                .map(|&f| if f { Filter::Fixed } else { Filter::Free })
+                .collect();
+            Plain {
+                values,
+                chol,
+                exact: factor_scale == 1.0,
+                filter,
+                extra: vec![Vec3::zeros(); s.x0.len()],
+            }
+        }
+
+        /// The step problem: start and targets at `s.x0`, no contacts.
+        fn problem<'a>(&'a self, s: &'a Small) -> StepProblem<'a> {
+            StepProblem {
+                x0: &s.x0,
+                y: &s.y,
+                inertia: &s.inertia,
+                damping: s.damping,
+                contacts: None,
+                low_rank: None,
+                values: &self.values,
+                exact: self.exact,
+                rhs_extra: &self.extra,
+                filter: &self.filter,
+                targets: &s.x0,
+            }
+        }
+    }
+
     /// Runs `iterations` local/global iterations from `x` (pinned vertices held at `x0`), with
     /// the factor of the system with the inertia scaled by `factor_scale` (1: exact, else the
     /// global step runs CG preconditioned with the factor of another matrix); returns the
     /// step energies, first the start's.
     fn run(s: &Small, x: &mut [Vec3], iterations: usize, factor_scale: f64) -> Vec<f64> {
-        let values = s.system.system_values(&s.inertia, s.damping);
-        let fi: Vec<f64> = s.inertia.iter().map(|m| m * factor_scale).collect();
-        let mut chol = ScalarCholesky::new(s.system.pattern()).unwrap();
-        assert!(chol.factor(
-            s.system.pattern(),
-            &s.system.system_values(&fi, s.damping),
-            &s.fixed
-        ));
-        let filter: Vec<Filter> = s
-            .fixed
-            .iter()
-            .map(|&f| if f { Filter::Fixed } else { Filter::Free })
-            .collect();
-        let extra = vec![Vec3::zeros(); x.len()];
-        let problem = StepProblem {
-            x0: &s.x0,
-            y: &s.y,
-            inertia: &s.inertia,
-            damping: s.damping,
-            contacts: None,
-            low_rank: None,
-            values: &values,
-            exact: factor_scale == 1.0,
-            rhs_extra: &extra,
-            filter: &filter,
-            targets: &s.x0,
-        };
+        let setup = Plain::new(s, factor_scale);
+        let (problem, chol) = (setup.problem(s), &setup.chol);
         for i in 0..x.len() {
             if s.fixed[i] {
                 x[i] = s.x0[i];
@@ -1476,7 +1481,7 @@ mod tests {
         let mut work = Workspace::default();
         for _ in 0..iterations {
             s.system
-                .iterate(&problem, &rhs, &chol, settings, x, &mut work);
+                .iterate(&problem, &rhs, chol, settings, x, &mut work);
             energies.push(s.system.step_energy(&problem, x));
         }
         energies
