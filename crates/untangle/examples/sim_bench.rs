@@ -146,7 +146,12 @@ fn cpu_ms() -> f64 {
 
 /// 10 warm-up steps, then `SIM_BENCH_STEPS` (30) timed steps; prints the per-phase means.
 fn timed(label: usize, verts: usize, sim: &mut Simulator) {
-    let policy = UniformThickness(2e-3);
+    // `SIM_BENCH_THICKNESS` (metres) overrides the 2 mm cloth thickness.
+    let thickness = std::env::var("SIM_BENCH_THICKNESS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2e-3);
+    let policy = UniformThickness(thickness);
     let verbose = std::env::var("SIM_BENCH_VERBOSE").is_ok();
     for _ in 0..10 {
         let r = sim.step(&policy);

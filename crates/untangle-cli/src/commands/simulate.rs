@@ -76,6 +76,11 @@ pub struct Args {
     /// Local/global iterations per step of `--integrator projective`.
     #[arg(long, default_value_t = 10)]
     pub pd_iterations: usize,
+    /// Thickness cap of cloth-cloth pairs that are neighbours on the cloth, as a fraction of
+    /// the shortest edge at their nodes (keeps a thickness larger than the mesh's edges from
+    /// inflating the cloth); 0 turns it off.
+    #[arg(long, allow_negative_numbers = true, default_value_t = untangle::sim::step::NEAR_PAIR_FRACTION)]
+    pub near_pair_fraction: f64,
 }
 
 /// `--integrator` values.
@@ -291,6 +296,7 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
             IntegratorArg::Projective => Integrator::Projective,
         },
         projective_iterations: args.pd_iterations,
+        near_pair_fraction: args.near_pair_fraction,
         ..SimParams::default()
     };
     let mut sim = Simulator::new(&garment, params.clone())
@@ -406,6 +412,7 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
             "steps": args.steps,
             "dt": args.dt,
             "thickness": args.thickness,
+            "near_pair_fraction": args.near_pair_fraction,
             "start_intersecting_pairs": start.segments.len(),
             "end_intersecting_pairs": end.segments.len(),
             "administrative_quits": quits,

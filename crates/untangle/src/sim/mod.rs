@@ -27,6 +27,7 @@ pub mod collision;
 pub mod contact;
 pub mod forces;
 pub mod low_rank;
+pub mod near;
 pub mod obstacle;
 pub mod pcg;
 pub mod policy;

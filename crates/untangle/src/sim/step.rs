@@ -22,6 +22,7 @@ use super::contact::ObstacleContact;
 use super::contact::{self, ContactFinder};
 use super::forces::stretch::{stretch_energy, stretch_terms, StretchTerms, BLOCKS};
 use super::low_rank;
+use super::near::NearCapped;
 use super::obstacle::{Obstacle, Obstacles};
 use super::pcg::{self, Aggregation, CoarseLevel, Filter, PcgResult, PcgSettings};
 use super::policy::Contact;
@@ -33,6 +34,7 @@ use super::sparse::{BsrMatrix, BsrPattern};
 use crate::error::{Error, Result};
 use crate::geom::{Vec2, Vec3};
 use crate::mesh::{Garment, Topology};
+use std::sync::Arc;
 
 /// Rounds of releasing pulling obstacle contacts and solving again.
 const MAX_RELEASE_ROUNDS: usize = 3;
@@ -126,6 +128,12 @@ pub struct SimParams {
     /// ([`crate::methods::cha_ko::ResolveParams::projective_cg_cap`], 1 by default;
     /// BENCHMARKS.md, branch loop10).
     pub projective_cg_iterations: usize,
+    /// Thickness cap of cloth-cloth pairs that are neighbours on the cloth, as a fraction of the
+    /// shortest edge at their nodes ([`crate::sim::near`], ours): keeps a thickness larger than
+    /// a fine mesh's edges from pushing the cloth apart in its own plane. Default 0.25; 0 turns
+    /// it off (the Cha & Ko loop turns it off: its m-CCH thicknesses are the paper's, already
+    /// tied to the edge length).
+    pub near_pair_fraction: f64,
 }
 
 /// How the implicit step before collision handling is solved.
@@ -181,6 +189,7 @@ impl Default for SimParams {
             projective_chebyshev: 0.9,
             projective_anderson: 0,
             projective_cg_iterations: PD_CG_CAP,
+            near_pair_fraction: NEAR_PAIR_FRACTION,
         }
     }
 }
@@ -215,6 +224,7 @@ impl SimParams {
         nonneg("stiffness damping", self.damping_stiffness)?;
         nonneg("friction", self.friction)?;
         pos("cg tolerance", self.cg_tolerance)?;
+        nonneg("near pair fraction", self.near_pair_fraction)?;
         if !(self.ccd_ratio > 0.0 && self.ccd_ratio <= 1.0) {
             return Err(Error::Parameter(format!(
                 "ccd ratio must be in (0, 1], got {}",
@@ -266,9 +276,11 @@ pub struct SimSnapshot {
 /// A cloth simulator over one garment (world vertices = nodes) plus obstacles.
 pub struct Simulator {
     params: SimParams,
-    triangles: Vec<[u32; 3]>,
+    /// Shared with the step's [`NearCapped`] policy.
+    triangles: Arc<Vec<[u32; 3]>>,
     uv_triangles: Vec<[u32; 3]>,
-    topology: Topology,
+    /// Shared with the step's [`NearCapped`] policy.
+    topology: Arc<Topology>,
     uv: Vec<Vec2>,
     rest: RestShape,
     /// What a uv edit touches ([`Simulator::set_rest_uv`] updates only that).
@@ -396,9 +408,9 @@ impl Simulator {
             rest_index,
             hinge,
             params,
-            triangles: mesh.triangles.clone(),
+            triangles: Arc::new(mesh.triangles.clone()),
             uv_triangles: uv.triangles.clone(),
-            topology,
+            topology: Arc::new(topology),
             uv: uv.coords.clone(),
             rest,
             mass,
@@ -1562,6 +1574,17 @@ impl Simulator {
     fn step_in_pool(&mut self, policy: &dyn ContactPolicy) -> StepReport {
         let t0 = Instant::now();
         let p = self.params.clone();
+        // Neighbour pairs' thickness capped at the start positions ([`super::near`]).
+        let (triangles, topology) = (self.triangles.clone(), self.topology.clone());
+        let capped = (p.near_pair_fraction > 0.0)
+            .then(|| NearCapped::new(policy, &topology, &triangles, &self.x, p.near_pair_fraction))
+            .filter(NearCapped::binds);
+        self.step_with(&p, capped.as_ref().map_or(policy, |c| c as _), t0)
+    }
+
+    /// [`Simulator::step_in_pool`] with the policy in force.
+    fn step_with(&mut self, p: &SimParams, policy: &dyn ContactPolicy, t0: Instant) -> StepReport {
+        let p = p.clone();
         let h = p.dt;
         let n = self.x.len();
         let inv_mass: Vec<f64> = (0..n)
@@ -1735,6 +1758,11 @@ fn low_rank_terms(
     }
     (groups, terms)
 }
+
+/// Default [`SimParams::near_pair_fraction`]: a neighbour pair's thickness is at most a
+/// quarter of the shortest edge at its nodes (a flat cloth's neighbour pairs are at least
+/// about half an edge apart; BENCHMARKS.md, "Near pairs").
+pub const NEAR_PAIR_FRACTION: f64 = 0.25;
 
 /// Default cap of the CG iterations of one projective global step
 /// ([`SimParams::projective_cg_iterations`]).

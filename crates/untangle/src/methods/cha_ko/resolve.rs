@@ -97,6 +97,8 @@ impl Default for ResolveParams {
             sim: SimParams {
                 // The loop's cases were validated with every pair within reach as a contact.
                 contacts_within_reach: true,
+                // m-CCH's thicknesses are the paper's (epsilon_RG is tied to the edge length).
+                near_pair_fraction: 0.0,
                 // Soft impact zones (ours): a tangle under the large stretch forces of deep
                 // pulls kept forming one rigid zone over nearly the whole cloth every step, so
                 // it could not contract at all (exploded handkerchief: 49 / 50 seeds resolved
