@@ -51,20 +51,28 @@ pub enum BroadPhase {
 }
 
 /// Meshes with at most this many triangles may use the sweep...
-const SWEEP_MAX_TRIANGLES: usize = 1024;
+pub const SWEEP_MAX_TRIANGLES: usize = 1024;
 /// ...if it tests at most this many pairs per triangle (x intervals overlapping).
 const SWEEP_MAX_PAIRS_PER_TRIANGLE: usize = 128;
 
 impl BroadPhase {
     /// The broad phase for triangle boxes `boxes`.
     pub fn new(boxes: &[Aabb]) -> Self {
+        match Self::sweep(boxes) {
+            Some(s) => BroadPhase::Sweep(s),
+            None => BroadPhase::Hierarchy(Bvh::build(boxes)),
+        }
+    }
+
+    /// The sweep if [`BroadPhase::new`] chooses it (built on the calling thread), else `None`.
+    pub fn sweep(boxes: &[Aabb]) -> Option<SweepAndPrune> {
         if boxes.len() <= SWEEP_MAX_TRIANGLES {
             let s = SweepAndPrune::build(boxes);
             if s.x_pairs() <= SWEEP_MAX_PAIRS_PER_TRIANGLE * boxes.len() {
-                return BroadPhase::Sweep(s);
+                return Some(s);
             }
         }
-        BroadPhase::Hierarchy(Bvh::build(boxes))
+        None
     }
 
     /// The triangle in each slot (the order the pair callbacks index).
@@ -139,6 +147,23 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
         // crumpled ball (one of seven carried ~40 % of the pairs on the exploded handkerchief),
         // so one thread used to finish long after the other. The crossings are the same set
         // either way, and the sort below puts them in one order.
+        // Called from outside rayon's pool (a small mesh: see `analysis::analyze_with`): the
+        // calling thread works itself, with one pool worker as a helper (no hand-over of the
+        // whole pass to the pool and back).
+        BroadPhase::Sweep(sweep)
+            if rayon::current_num_threads() > 1 && rayon::current_thread_index().is_none() =>
+        {
+            let list = || {
+                sweep.self_slot_pairs_skipping_here(&quiet(), |sa, sb, list| {
+                    if pairs.reaches_kernel(sa, sb) {
+                        list.push([sa, sb]);
+                    }
+                })
+            };
+            with_helper(list, &pairs, || {
+                fan_crossings(&ctx, has_obstacles, &patch_of)
+            })
+        }
         BroadPhase::Sweep(sweep) if rayon::current_num_threads() > 1 => {
             let (mut out, fans) = rayon::join(
                 || {
@@ -273,6 +298,92 @@ impl SlotPairs<'_> {
 /// Slot pairs per parallel task of the kernel when the sweep lists them first (a few dozen
 /// microseconds of work each).
 const KERNEL_SHARE: usize = 256;
+
+/// The sweep's crossings and the fan pass's from the calling thread (outside rayon's pool) and
+/// one pool worker: the caller lists the slot pairs (`list`) while the helper wakes up and takes
+/// the fan pass (`fans`); then both run the kernel over shares of [`KERNEL_SHARE`] listed pairs,
+/// each claiming the next share; whoever finds the fan pass still untaken at the end runs it.
+/// The caller waits for the helper only if the helper has started (otherwise the helper, once
+/// it runs, returns at once). The crossings are the same set as on one thread, in an order that
+/// depends on the claims; the caller sorts them.
+fn with_helper(
+    list: impl FnOnce() -> Vec<[u32; 2]>,
+    pairs: &SlotPairs,
+    fans: impl FnOnce() -> Vec<Crossing> + Send,
+) -> Vec<Crossing> {
+    use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
+    use std::sync::{Mutex, OnceLock};
+    // `state`: the helper has not started, runs, is done; the caller closed the pass.
+    const IDLE: u8 = 0;
+    const RUNNING: u8 = 1;
+    const DONE: u8 = 2;
+    const CLOSED: u8 = 3;
+    let listed: OnceLock<Vec<[u32; 2]>> = OnceLock::new();
+    let next = AtomicUsize::new(0);
+    let fans_taken = AtomicBool::new(false);
+    let fans = Mutex::new(Some(fans));
+    let state = AtomicU8::new(IDLE);
+    let helper_out: Mutex<Vec<Crossing>> = Mutex::new(Vec::new());
+    // Claims shares of the list until none is left.
+    let run_kernel = |list: &[[u32; 2]], out: &mut Vec<Crossing>| loop {
+        let i = next.fetch_add(1, Ordering::Relaxed) * KERNEL_SHARE;
+        if i >= list.len() {
+            break;
+        }
+        for &[sa, sb] in &list[i..(i + KERNEL_SHARE).min(list.len())] {
+            pairs.kernel(sa, sb, out);
+        }
+    };
+    let run_fans = |out: &mut Vec<Crossing>| {
+        if !fans_taken.swap(true, Ordering::Relaxed) {
+            let f = fans.lock().expect("no panics while held").take();
+            out.extend(f.expect("taken once")());
+        }
+    };
+    rayon::in_place_scope(|s| {
+        s.spawn(|_| {
+            if state
+                .compare_exchange(IDLE, RUNNING, Ordering::AcqRel, Ordering::Acquire)
+                .is_err()
+            {
+                return; // the caller did everything
+            }
+            let mut out = Vec::new();
+            run_fans(&mut out);
+            let list = loop {
+                if let Some(l) = listed.get() {
+                    break l;
+                }
+                std::thread::yield_now();
+            };
+            run_kernel(list, &mut out);
+            *helper_out.lock().expect("no panics while held") = out;
+            state.store(DONE, Ordering::Release);
+        });
+        let list = listed.get_or_init(list);
+        let mut out = Vec::new();
+        run_kernel(list, &mut out);
+        run_fans(&mut out);
+        if state
+            .compare_exchange(IDLE, CLOSED, Ordering::AcqRel, Ordering::Acquire)
+            .is_err()
+        {
+            // The helper runs: its last share is at most one share of work away.
+            let mut spins = 0u32;
+            while state.load(Ordering::Acquire) != DONE {
+                spins += 1;
+                if spins % 1024 == 0 {
+                    std::thread::yield_now();
+                }
+                std::hint::spin_loop();
+            }
+            out.extend(std::mem::take(
+                &mut *helper_out.lock().expect("no panics while held"),
+            ));
+        }
+        out
+    })
+}
 
 /// What the pair loop reads of a triangle, in BVH slot order (contiguous for the traversal).
 #[derive(Clone, Copy)]
@@ -692,6 +803,31 @@ mod tests {
             let brute = brute_crossings(&mesh, &pos);
             prop_assert_eq!(&crossings_with(1, &mesh, &pos), &brute);
             prop_assert_eq!(&crossings_with(2, &mesh, &pos), &brute);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(16))]
+
+        /// Called from a thread outside rayon's pool (the test thread), the sweep's pass runs on
+        /// the caller with a pool worker helping when the global pool has more than one thread
+        /// (sharing the kernel by claims, the fan pass taken by whoever comes first): the
+        /// crossings are the brute-force ones, in the same order, run after run.
+        #[test]
+        fn sweep_crossings_from_outside_the_pool_match_brute_force(
+            seed in 0u64..1_000_000,
+            n in 4usize..12,
+        ) {
+            prop_assert!(rayon::current_thread_index().is_none(), "the test thread");
+            let s = crate::scenes::exploded::exploded(seed, n);
+            let (mesh, pos) = AnalysisMesh::single(&s.meshes[0]).expect("valid");
+            let brute = brute_crossings(&mesh, &pos);
+            let boxes = triangle_boxes(&mesh, &pos);
+            let sweep = BroadPhase::sweep(&boxes).expect("small, dense: the sweep");
+            let broad = BroadPhase::Sweep(sweep);
+            for _ in 0..3 {
+                prop_assert_eq!(&find_crossings(&mesh, &pos, &broad), &brute);
+            }
         }
     }
 

@@ -98,7 +98,7 @@ impl SweepAndPrune {
         T: Send,
         F: Fn(u32, u32, &mut Vec<T>) + Sync,
     {
-        self.pairs_impl(None, visit)
+        self.pairs_impl(None, true, visit)
     }
 
     /// Like [`SweepAndPrune::self_slot_pairs`], without the pairs of two *quiet* slots
@@ -110,12 +110,24 @@ impl SweepAndPrune {
         F: Fn(u32, u32, &mut Vec<T>) + Sync,
     {
         assert_eq!(quiet.len(), self.len(), "one flag per slot");
-        self.pairs_impl(Some(Loud::new(self, quiet)), visit)
+        self.pairs_impl(Some(Loud::new(self, quiet)), true, visit)
+    }
+
+    /// [`SweepAndPrune::self_slot_pairs_skipping`] on the calling thread only (no parallel
+    /// tasks; for a caller outside rayon's pool, where a parallel loop would hand its work to
+    /// the pool and sleep). The same pairs in the same order.
+    pub fn self_slot_pairs_skipping_here<T, F>(&self, quiet: &[bool], visit: F) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(u32, u32, &mut Vec<T>) + Sync,
+    {
+        assert_eq!(quiet.len(), self.len(), "one flag per slot");
+        self.pairs_impl(Some(Loud::new(self, quiet)), false, visit)
     }
 
     /// The sweep of [`SweepAndPrune::self_slot_pairs`]; with `loud`, quiet slots scan only the
-    /// loud boxes after them.
-    fn pairs_impl<T, F>(&self, loud: Option<Loud>, visit: F) -> Vec<T>
+    /// loud boxes after them; with `parallel` false, on the calling thread only.
+    fn pairs_impl<T, F>(&self, loud: Option<Loud>, parallel: bool, visit: F) -> Vec<T>
     where
         T: Send,
         F: Fn(u32, u32, &mut Vec<T>) + Sync,
@@ -160,7 +172,7 @@ impl SweepAndPrune {
                 }
             }
         };
-        if rayon::current_num_threads() == 1 || n <= CHUNK {
+        if !parallel || rayon::current_num_threads() == 1 || n <= CHUNK {
             let mut out = Vec::new();
             sweep(0..n, &mut out);
             return out;
