@@ -153,16 +153,29 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
         BroadPhase::Sweep(sweep)
             if rayon::current_num_threads() > 1 && rayon::current_thread_index().is_none() =>
         {
-            let list = || {
-                sweep.self_slot_pairs_skipping_here(&quiet(), |sa, sb, list| {
-                    if pairs.reaches_kernel(sa, sb) {
-                        list.push([sa, sb]);
+            let quiet = quiet();
+            let skipping = sweep.skipping(&quiet);
+            // Each claim lists its pairs that reach the kernel, then runs the kernel over them
+            // (as the in-pool pass does: a tighter kernel loop than calling it from the sweep).
+            with_helper(
+                sweep.len(),
+                |range, list, out| {
+                    list.clear();
+                    skipping.pairs_in(
+                        range,
+                        |sa, sb, list| {
+                            if pairs.reaches_kernel(sa, sb) {
+                                list.push([sa, sb]);
+                            }
+                        },
+                        list,
+                    );
+                    for &[sa, sb] in list.iter() {
+                        pairs.kernel(sa, sb, out);
                     }
-                })
-            };
-            with_helper(list, &pairs, || {
-                fan_crossings(&ctx, has_obstacles, &patch_of)
-            })
+                },
+                || fan_crossings(&ctx, has_obstacles, &patch_of),
+            )
         }
         BroadPhase::Sweep(sweep) if rayon::current_num_threads() > 1 => {
             let (mut out, fans) = rayon::join(
@@ -299,39 +312,46 @@ impl SlotPairs<'_> {
 /// microseconds of work each).
 const KERNEL_SHARE: usize = 256;
 
+/// Slots of the sweep per claim in [`with_helper`] (small: the work per slot varies several-fold
+/// across a crumpled ball, and the last claims decide when both threads are done).
+const CLAIM_SLOTS: usize = 8;
+
 /// The sweep's crossings and the fan pass's from the calling thread (outside rayon's pool) and
-/// one pool worker: the caller lists the slot pairs (`list`) while the helper wakes up and takes
-/// the fan pass (`fans`); then both run the kernel over shares of [`KERNEL_SHARE`] listed pairs,
-/// each claiming the next share; whoever finds the fan pass still untaken at the end runs it.
-/// The caller waits for the helper only if the helper has started (otherwise the helper, once
-/// it runs, returns at once). The crossings are the same set as on one thread, in an order that
+/// one pool worker: `sweep(range, scratch, out)` runs the sweep and the kernel over the pairs
+/// whose first slot is in `range`; both threads claim ranges of [`CLAIM_SLOTS`] slots from one
+/// shared counter, so they finish within one claim of each other; the helper first takes the fan pass (`fans`) while
+/// the caller starts sweeping, and the caller runs it at the end if the helper has not. The
+/// caller waits for the helper only if the helper has started (otherwise the helper, once it
+/// runs, returns at once). The crossings are the same set as on one thread, in an order that
 /// depends on the claims; the caller sorts them.
-fn with_helper(
-    list: impl FnOnce() -> Vec<[u32; 2]>,
-    pairs: &SlotPairs,
+fn with_helper<S>(
+    slots: usize,
+    sweep: S,
     fans: impl FnOnce() -> Vec<Crossing> + Send,
-) -> Vec<Crossing> {
+) -> Vec<Crossing>
+where
+    S: Fn(std::ops::Range<usize>, &mut Vec<[u32; 2]>, &mut Vec<Crossing>) + Sync,
+{
     use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
-    use std::sync::{Mutex, OnceLock};
+    use std::sync::Mutex;
     // `state`: the helper has not started, runs, is done; the caller closed the pass.
     const IDLE: u8 = 0;
     const RUNNING: u8 = 1;
     const DONE: u8 = 2;
     const CLOSED: u8 = 3;
-    let listed: OnceLock<Vec<[u32; 2]>> = OnceLock::new();
     let next = AtomicUsize::new(0);
     let fans_taken = AtomicBool::new(false);
     let fans = Mutex::new(Some(fans));
     let state = AtomicU8::new(IDLE);
     let helper_out: Mutex<Vec<Crossing>> = Mutex::new(Vec::new());
-    // Claims shares of the list until none is left.
-    let run_kernel = |list: &[[u32; 2]], out: &mut Vec<Crossing>| loop {
-        let i = next.fetch_add(1, Ordering::Relaxed) * KERNEL_SHARE;
-        if i >= list.len() {
-            break;
-        }
-        for &[sa, sb] in &list[i..(i + KERNEL_SHARE).min(list.len())] {
-            pairs.kernel(sa, sb, out);
+    let run_sweep = |out: &mut Vec<Crossing>| {
+        let mut scratch = Vec::new();
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed) * CLAIM_SLOTS;
+            if i >= slots {
+                break;
+            }
+            sweep(i..i + CLAIM_SLOTS, &mut scratch, out);
         }
     };
     let run_fans = |out: &mut Vec<Crossing>| {
@@ -350,25 +370,18 @@ fn with_helper(
             }
             let mut out = Vec::new();
             run_fans(&mut out);
-            let list = loop {
-                if let Some(l) = listed.get() {
-                    break l;
-                }
-                std::thread::yield_now();
-            };
-            run_kernel(list, &mut out);
+            run_sweep(&mut out);
             *helper_out.lock().expect("no panics while held") = out;
             state.store(DONE, Ordering::Release);
         });
-        let list = listed.get_or_init(list);
         let mut out = Vec::new();
-        run_kernel(list, &mut out);
+        run_sweep(&mut out);
         run_fans(&mut out);
         if state
             .compare_exchange(IDLE, CLOSED, Ordering::AcqRel, Ordering::Acquire)
             .is_err()
         {
-            // The helper runs: its last share is at most one share of work away.
+            // The helper runs: at most its last claim (or the fan pass) is left.
             let mut spins = 0u32;
             while state.load(Ordering::Acquire) != DONE {
                 spins += 1;
