@@ -51,7 +51,7 @@ pub enum BroadPhase {
 }
 
 /// Meshes with at most this many triangles may use the sweep...
-pub const SWEEP_MAX_TRIANGLES: usize = 1024;
+const SWEEP_MAX_TRIANGLES: usize = 1024;
 /// ...if it tests at most this many pairs per triangle (x intervals overlapping).
 const SWEEP_MAX_PAIRS_PER_TRIANGLE: usize = 128;
 
