@@ -657,3 +657,35 @@ fn intersection_curves_lie_on_both_sheets_and_are_continuous() {
         assert!((p.z - 0.0123 * p.x).abs() < 1e-9, "on sheet A: {p:?}");
     }
 }
+
+/// A small mesh analysed from a thread outside rayon's pool runs on the calling thread (with a
+/// helper worker in the crossing pass); the result equals the analysis run inside a pool of one
+/// and of two threads (the oracle: the whole analysis handed to the pool).
+#[test]
+fn small_meshes_analysed_outside_the_pool_match_the_pool() {
+    use untangle::analysis::Analysis;
+    let same = |a: &Analysis, b: &Analysis| {
+        assert_eq!(a.crossings, b.crossings);
+        assert_eq!(a.segments, b.segments);
+        assert_eq!(a.segments_of_crossing, b.segments_of_crossing);
+        assert_eq!(a.paths, b.paths);
+        assert_eq!(a.tanglements, b.tanglements);
+        assert_eq!(a.regions, b.regions);
+        assert_eq!(a.coloring, b.coloring);
+    };
+    assert!(rayon::current_thread_index().is_none(), "the test thread");
+    for (seed, n) in [(0, 14), (1, 14), (2, 14), (3, 9), (0, 20)] {
+        let s = untangle::scenes::exploded::exploded(seed, n);
+        let (mesh, pos) = AnalysisMesh::single(&s.meshes[0]).expect("valid");
+        let here = analyze(&mesh, &pos).expect("consistent");
+        assert!(!here.segments.is_empty());
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool");
+            let inside = pool.install(|| analyze(&mesh, &pos).expect("consistent"));
+            same(&here, &inside);
+        }
+    }
+}

@@ -58,13 +58,21 @@ const SWEEP_MAX_PAIRS_PER_TRIANGLE: usize = 128;
 impl BroadPhase {
     /// The broad phase for triangle boxes `boxes`.
     pub fn new(boxes: &[Aabb]) -> Self {
+        match Self::sweep(boxes) {
+            Some(s) => BroadPhase::Sweep(s),
+            None => BroadPhase::Hierarchy(Bvh::build(boxes)),
+        }
+    }
+
+    /// The sweep if [`BroadPhase::new`] chooses it (built on the calling thread), else `None`.
+    pub fn sweep(boxes: &[Aabb]) -> Option<SweepAndPrune> {
         if boxes.len() <= SWEEP_MAX_TRIANGLES {
             let s = SweepAndPrune::build(boxes);
             if s.x_pairs() <= SWEEP_MAX_PAIRS_PER_TRIANGLE * boxes.len() {
-                return BroadPhase::Sweep(s);
+                return Some(s);
             }
         }
-        BroadPhase::Hierarchy(Bvh::build(boxes))
+        None
     }
 
     /// The triangle in each slot (the order the pair callbacks index).
@@ -139,6 +147,36 @@ pub fn find_crossings(mesh: &AnalysisMesh, pos: &[Vec3], broad: &BroadPhase) -> 
         // crumpled ball (one of seven carried ~40 % of the pairs on the exploded handkerchief),
         // so one thread used to finish long after the other. The crossings are the same set
         // either way, and the sort below puts them in one order.
+        // Called from outside rayon's pool (a small mesh: see `analysis::analyze_with`): the
+        // calling thread works itself, with one pool worker as a helper (no hand-over of the
+        // whole pass to the pool and back).
+        BroadPhase::Sweep(sweep)
+            if rayon::current_num_threads() > 1 && rayon::current_thread_index().is_none() =>
+        {
+            let quiet = quiet();
+            let skipping = sweep.skipping(&quiet);
+            // Each claim lists its pairs that reach the kernel, then runs the kernel over them
+            // (as the in-pool pass does: a tighter kernel loop than calling it from the sweep).
+            with_helper(
+                sweep.len(),
+                |range, list, out| {
+                    list.clear();
+                    skipping.pairs_in(
+                        range,
+                        |sa, sb, list| {
+                            if pairs.reaches_kernel(sa, sb) {
+                                list.push([sa, sb]);
+                            }
+                        },
+                        list,
+                    );
+                    for &[sa, sb] in list.iter() {
+                        pairs.kernel(sa, sb, out);
+                    }
+                },
+                || fan_crossings(&ctx, has_obstacles, &patch_of),
+            )
+        }
         BroadPhase::Sweep(sweep) if rayon::current_num_threads() > 1 => {
             let (mut out, fans) = rayon::join(
                 || {
@@ -273,6 +311,92 @@ impl SlotPairs<'_> {
 /// Slot pairs per parallel task of the kernel when the sweep lists them first (a few dozen
 /// microseconds of work each).
 const KERNEL_SHARE: usize = 256;
+
+/// Slots of the sweep per claim in [`with_helper`] (small: the work per slot varies several-fold
+/// across a crumpled ball, and the last claims decide when both threads are done).
+const CLAIM_SLOTS: usize = 8;
+
+/// The sweep's crossings and the fan pass's from the calling thread (outside rayon's pool) and
+/// one pool worker: `sweep(range, scratch, out)` runs the sweep and the kernel over the pairs
+/// whose first slot is in `range`; both threads claim ranges of [`CLAIM_SLOTS`] slots from one
+/// shared counter, so they finish within one claim of each other; the helper first takes the fan pass (`fans`) while
+/// the caller starts sweeping, and the caller runs it at the end if the helper has not. The
+/// caller waits for the helper only if the helper has started (otherwise the helper, once it
+/// runs, returns at once). The crossings are the same set as on one thread, in an order that
+/// depends on the claims; the caller sorts them.
+fn with_helper<S>(
+    slots: usize,
+    sweep: S,
+    fans: impl FnOnce() -> Vec<Crossing> + Send,
+) -> Vec<Crossing>
+where
+    S: Fn(std::ops::Range<usize>, &mut Vec<[u32; 2]>, &mut Vec<Crossing>) + Sync,
+{
+    use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
+    use std::sync::Mutex;
+    // `state`: the helper has not started, runs, is done; the caller closed the pass.
+    const IDLE: u8 = 0;
+    const RUNNING: u8 = 1;
+    const DONE: u8 = 2;
+    const CLOSED: u8 = 3;
+    let next = AtomicUsize::new(0);
+    let fans_taken = AtomicBool::new(false);
+    let fans = Mutex::new(Some(fans));
+    let state = AtomicU8::new(IDLE);
+    let helper_out: Mutex<Vec<Crossing>> = Mutex::new(Vec::new());
+    let run_sweep = |out: &mut Vec<Crossing>| {
+        let mut scratch = Vec::new();
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed) * CLAIM_SLOTS;
+            if i >= slots {
+                break;
+            }
+            sweep(i..i + CLAIM_SLOTS, &mut scratch, out);
+        }
+    };
+    let run_fans = |out: &mut Vec<Crossing>| {
+        if !fans_taken.swap(true, Ordering::Relaxed) {
+            let f = fans.lock().expect("no panics while held").take();
+            out.extend(f.expect("taken once")());
+        }
+    };
+    rayon::in_place_scope(|s| {
+        s.spawn(|_| {
+            if state
+                .compare_exchange(IDLE, RUNNING, Ordering::AcqRel, Ordering::Acquire)
+                .is_err()
+            {
+                return; // the caller did everything
+            }
+            let mut out = Vec::new();
+            run_fans(&mut out);
+            run_sweep(&mut out);
+            *helper_out.lock().expect("no panics while held") = out;
+            state.store(DONE, Ordering::Release);
+        });
+        let mut out = Vec::new();
+        run_sweep(&mut out);
+        run_fans(&mut out);
+        if state
+            .compare_exchange(IDLE, CLOSED, Ordering::AcqRel, Ordering::Acquire)
+            .is_err()
+        {
+            // The helper runs: at most its last claim (or the fan pass) is left.
+            let mut spins = 0u32;
+            while state.load(Ordering::Acquire) != DONE {
+                spins += 1;
+                if spins % 1024 == 0 {
+                    std::thread::yield_now();
+                }
+                std::hint::spin_loop();
+            }
+            out.extend(std::mem::take(
+                &mut *helper_out.lock().expect("no panics while held"),
+            ));
+        }
+        out
+    })
+}
 
 /// What the pair loop reads of a triangle, in BVH slot order (contiguous for the traversal).
 #[derive(Clone, Copy)]
@@ -692,6 +816,31 @@ mod tests {
             let brute = brute_crossings(&mesh, &pos);
             prop_assert_eq!(&crossings_with(1, &mesh, &pos), &brute);
             prop_assert_eq!(&crossings_with(2, &mesh, &pos), &brute);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(16))]
+
+        /// Called from a thread outside rayon's pool (the test thread), the sweep's pass runs on
+        /// the caller with a pool worker helping when the global pool has more than one thread
+        /// (sharing the kernel by claims, the fan pass taken by whoever comes first): the
+        /// crossings are the brute-force ones, in the same order, run after run.
+        #[test]
+        fn sweep_crossings_from_outside_the_pool_match_brute_force(
+            seed in 0u64..1_000_000,
+            n in 4usize..12,
+        ) {
+            prop_assert!(rayon::current_thread_index().is_none(), "the test thread");
+            let s = crate::scenes::exploded::exploded(seed, n);
+            let (mesh, pos) = AnalysisMesh::single(&s.meshes[0]).expect("valid");
+            let brute = brute_crossings(&mesh, &pos);
+            let boxes = triangle_boxes(&mesh, &pos);
+            let sweep = BroadPhase::sweep(&boxes).expect("small, dense: the sweep");
+            let broad = BroadPhase::Sweep(sweep);
+            for _ in 0..3 {
+                prop_assert_eq!(&find_crossings(&mesh, &pos, &broad), &brute);
+            }
         }
     }
 

@@ -105,25 +105,48 @@ pub fn analyze(mesh: &AnalysisMesh, pos: &[Vec3]) -> Result<Analysis, Inconsiste
     analyze_with(mesh, pos, &Options::default())
 }
 
-/// Runs the analysis of `mesh` at positions `pos` (inside rayon's pool,
-/// [`crate::pool::in_pool`]).
+/// Runs the analysis of `mesh` at positions `pos`: inside rayon's pool
+/// ([`crate::pool::in_pool`]), except for a small mesh (at most 512 triangles, swept by the
+/// broad phase) analysed from a thread outside the pool, which runs on the calling thread with
+/// at most one pool worker helping in the crossing pass (handing the whole analysis to the pool
+/// and back costs two thread wake-ups, some 15 % of the exploded handkerchief's analysis with
+/// two threads). The result is the same either way.
 pub fn analyze_with(
     mesh: &AnalysisMesh,
     pos: &[Vec3],
     options: &Options,
 ) -> Result<Analysis, Inconsistency> {
-    crate::pool::in_pool(|| analyze_in_pool(mesh, pos, options))
+    if rayon::current_thread_index().is_none() && mesh.triangles.len() <= HERE_MAX_TRIANGLES {
+        let t0 = Instant::now();
+        let boxes = crossings::triangle_boxes(mesh, pos);
+        if let Some(sweep) = crossings::BroadPhase::sweep(&boxes) {
+            return analyze_from(mesh, pos, options, t0, crossings::BroadPhase::Sweep(sweep));
+        }
+    }
+    crate::pool::in_pool(|| {
+        let t0 = Instant::now();
+        let boxes = crossings::triangle_boxes(mesh, pos);
+        let broad = crossings::BroadPhase::new(&boxes);
+        analyze_from(mesh, pos, options, t0, broad)
+    })
 }
 
-/// [`analyze_with`]'s body.
-fn analyze_in_pool(
+/// Meshes with at most this many triangles (and a swept broad phase) are analysed on the
+/// calling thread when it is outside rayon's pool. The two hand-overs it saves are a fixed
+/// cost (some 30-60 us on the 2-CPU benchmark host): the exploded handkerchief (392 triangles,
+/// 0.45-0.55 ms) gained 15 %, while at 800 triangles (about 2 ms) the in-pool crossing pass
+/// (listing, then the kernel in stolen shares) measured 2-3 % faster than the caller/helper
+/// claims (BENCHMARKS.md, an8).
+const HERE_MAX_TRIANGLES: usize = 512;
+
+/// [`analyze_with`]'s body after the broad phase (started at `t0`).
+fn analyze_from(
     mesh: &AnalysisMesh,
     pos: &[Vec3],
     options: &Options,
+    t0: Instant,
+    broad: crossings::BroadPhase,
 ) -> Result<Analysis, Inconsistency> {
-    let t0 = Instant::now();
-    let boxes = crossings::triangle_boxes(mesh, pos);
-    let broad = crossings::BroadPhase::new(&boxes);
     let t1 = Instant::now();
     let crossings = crossings::find_crossings(mesh, pos, &broad);
     let t2 = Instant::now();

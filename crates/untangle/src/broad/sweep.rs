@@ -113,6 +113,16 @@ impl SweepAndPrune {
         self.pairs_impl(Some(Loud::new(self, quiet)), visit)
     }
 
+    /// The sweep of [`SweepAndPrune::self_slot_pairs_skipping`] prepared to run by ranges of
+    /// first slots ([`Skipping::pairs_in`]), from any number of threads.
+    pub fn skipping<'a>(&'a self, quiet: &'a [bool]) -> Skipping<'a> {
+        assert_eq!(quiet.len(), self.len(), "one flag per slot");
+        Skipping {
+            sweep: self,
+            loud: Loud::new(self, quiet),
+        }
+    }
+
     /// The sweep of [`SweepAndPrune::self_slot_pairs`]; with `loud`, quiet slots scan only the
     /// loud boxes after them.
     fn pairs_impl<T, F>(&self, loud: Option<Loud>, visit: F) -> Vec<T>
@@ -123,42 +133,7 @@ impl SweepAndPrune {
         use rayon::prelude::*;
         let n = self.len();
         let sweep = |range: std::ops::Range<usize>, out: &mut Vec<T>| {
-            for i in range {
-                let max_x = self.lanes[1][i];
-                let probe = self.probe(i);
-                if let Some(loud) = loud.as_ref().filter(|l| l.quiet[i]) {
-                    // Only the loud boxes after slot i.
-                    let m = loud.slots.len();
-                    let mut k = loud.first_after[i] as usize;
-                    while k < m && loud.lanes[0][k].partial_cmp(&max_x) != Some(Ordering::Greater) {
-                        let mut bits = overlap_pair_in(&loud.lanes, &probe, k);
-                        while bits != 0 {
-                            let l = bits.trailing_zeros() as usize;
-                            bits &= bits - 1;
-                            if k + l < m {
-                                visit(i as u32, loud.slots[k + l], out);
-                            }
-                        }
-                        k += 2;
-                    }
-                    continue;
-                }
-                let mut j = i + 1;
-                // Later boxes start no earlier: once one starts after box i ends, none of the
-                // rest reaches back to it.
-                // (`partial_cmp` rather than `<=`: a NaN bound does not stop the sweep.)
-                while j < n && self.lanes[0][j].partial_cmp(&max_x) != Some(Ordering::Greater) {
-                    let mut m = self.overlap_pair(&probe, j);
-                    while m != 0 {
-                        let l = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        if j + l < n {
-                            visit(i as u32, (j + l) as u32, out);
-                        }
-                    }
-                    j += 2;
-                }
-            }
+            self.sweep_range(loud.as_ref(), range, &visit, out)
         };
         if rayon::current_num_threads() == 1 || n <= CHUNK {
             let mut out = Vec::new();
@@ -178,6 +153,77 @@ impl SweepAndPrune {
             out.extend(c);
         }
         out
+    }
+
+    /// The pairs whose first slot is in `range` (see [`SweepAndPrune::pairs_impl`]).
+    #[inline(always)]
+    fn sweep_range<T, F>(
+        &self,
+        loud: Option<&Loud>,
+        range: std::ops::Range<usize>,
+        visit: &F,
+        out: &mut Vec<T>,
+    ) where
+        F: Fn(u32, u32, &mut Vec<T>),
+    {
+        let n = self.len();
+        for i in range {
+            let max_x = self.lanes[1][i];
+            let probe = self.probe(i);
+            if let Some(loud) = loud.filter(|l| l.quiet[i]) {
+                // Only the loud boxes after slot i.
+                let m = loud.slots.len();
+                let mut k = loud.first_after[i] as usize;
+                while k < m && loud.lanes[0][k].partial_cmp(&max_x) != Some(Ordering::Greater) {
+                    let mut bits = overlap_pair_in(&loud.lanes, &probe, k);
+                    while bits != 0 {
+                        let l = bits.trailing_zeros() as usize;
+                        bits &= bits - 1;
+                        if k + l < m {
+                            visit(i as u32, loud.slots[k + l], out);
+                        }
+                    }
+                    k += 2;
+                }
+                continue;
+            }
+            let mut j = i + 1;
+            // Later boxes start no earlier: once one starts after box i ends, none of the
+            // rest reaches back to it.
+            // (`partial_cmp` rather than `<=`: a NaN bound does not stop the sweep.)
+            while j < n && self.lanes[0][j].partial_cmp(&max_x) != Some(Ordering::Greater) {
+                let mut m = self.overlap_pair(&probe, j);
+                while m != 0 {
+                    let l = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if j + l < n {
+                        visit(i as u32, (j + l) as u32, out);
+                    }
+                }
+                j += 2;
+            }
+        }
+    }
+}
+
+/// [`SweepAndPrune::self_slot_pairs_skipping`] by ranges of first slots (see
+/// [`SweepAndPrune::skipping`]).
+pub struct Skipping<'a> {
+    sweep: &'a SweepAndPrune,
+    loud: Loud<'a>,
+}
+
+impl Skipping<'_> {
+    /// Calls `visit(i, j, out)` for the pairs of [`SweepAndPrune::self_slot_pairs_skipping`]
+    /// whose first slot `i` lies in `range` (clamped to the slots), in that method's order.
+    /// Ranges that cover the slots between them visit every pair once.
+    pub fn pairs_in<T, F>(&self, range: std::ops::Range<usize>, visit: F, out: &mut Vec<T>)
+    where
+        F: Fn(u32, u32, &mut Vec<T>),
+    {
+        let n = self.sweep.len();
+        let range = range.start.min(n)..range.end.min(n);
+        self.sweep.sweep_range(Some(&self.loud), range, &visit, out)
     }
 }
 
@@ -367,6 +413,15 @@ mod tests {
             want_q.sort();
             prop_assert_eq!(got_q, want_q);
             prop_assert!(one_q.iter().all(|&(i, j)| i < j));
+            // By ranges of first slots (of any length, past the end too): the same pairs in the
+            // same order when the ranges are taken in order.
+            let skipping = s.skipping(&quiet);
+            let mut by_ranges = Vec::new();
+            let step = 1 + quiet_bits.len() % 9;
+            for start in (0..a.len() + step).step_by(step) {
+                skipping.pairs_in(start..start + step, |i, j, o: &mut Vec<(u32, u32)>| o.push((i, j)), &mut by_ranges);
+            }
+            prop_assert_eq!(&by_ranges, &one_q);
             // The two-lane box test equals the one-box-at-a-time one (padding lane included).
             for i in 0..a.len() {
                 for j in i + 1..a.len() {
