@@ -231,12 +231,7 @@ fn multigrid_needs_fewer_cg_iterations_on_a_sheet() {
         }
         let mut iterations = 0;
         for _ in 0..20 {
-            let r = sim.step(&UniformThickness(
-                std::env::var("TH")
-                    .ok()
-                    .and_then(|s| s.parse().ok())
-                    .unwrap_or(2e-3),
-            ));
+            let r = sim.step(&UniformThickness(2e-3));
             assert!(r.cg.converged, "{pre:?}: {:?}", r.cg);
             iterations += r.cg.iterations;
         }

@@ -60,8 +60,13 @@ impl BroadPhase {
     pub fn new(boxes: &[Aabb]) -> Self {
         match Self::sweep(boxes) {
             Some(s) => BroadPhase::Sweep(s),
-            None => BroadPhase::Hierarchy(Bvh::build(boxes)),
+            None => Self::hierarchy(boxes),
         }
+    }
+
+    /// The hierarchy over `boxes` (what [`BroadPhase::new`] builds when the sweep is not chosen).
+    pub fn hierarchy(boxes: &[Aabb]) -> Self {
+        BroadPhase::Hierarchy(Bvh::build(boxes))
     }
 
     /// The sweep if [`BroadPhase::new`] chooses it (built on the calling thread), else `None`.
@@ -332,7 +337,7 @@ fn with_helper<S>(
 where
     S: Fn(std::ops::Range<usize>, &mut Vec<[u32; 2]>, &mut Vec<Crossing>) + Sync,
 {
-    use std::sync::atomic::{AtomicBool, AtomicU8, AtomicUsize, Ordering};
+    use std::sync::atomic::{AtomicU8, AtomicUsize, Ordering};
     use std::sync::Mutex;
     // `state`: the helper has not started, runs, is done; the caller closed the pass.
     const IDLE: u8 = 0;
@@ -340,7 +345,6 @@ where
     const DONE: u8 = 2;
     const CLOSED: u8 = 3;
     let next = AtomicUsize::new(0);
-    let fans_taken = AtomicBool::new(false);
     let fans = Mutex::new(Some(fans));
     let state = AtomicU8::new(IDLE);
     let helper_out: Mutex<Vec<Crossing>> = Mutex::new(Vec::new());
@@ -354,10 +358,11 @@ where
             sweep(i..i + CLAIM_SLOTS, &mut scratch, out);
         }
     };
+    // Whoever takes the fan pass first runs it (the lock is taken once by each thread).
     let run_fans = |out: &mut Vec<Crossing>| {
-        if !fans_taken.swap(true, Ordering::Relaxed) {
-            let f = fans.lock().expect("no panics while held").take();
-            out.extend(f.expect("taken once")());
+        let f = fans.lock().expect("no panics while held").take();
+        if let Some(f) = f {
+            out.extend(f());
         }
     };
     rayon::in_place_scope(|s| {

@@ -119,9 +119,16 @@ pub fn analyze_with(
     if rayon::current_thread_index().is_none() && mesh.triangles.len() <= HERE_MAX_TRIANGLES {
         let t0 = Instant::now();
         let boxes = crossings::triangle_boxes(mesh, pos);
-        if let Some(sweep) = crossings::BroadPhase::sweep(&boxes) {
-            return analyze_from(mesh, pos, options, t0, crossings::BroadPhase::Sweep(sweep));
-        }
+        return match crossings::BroadPhase::sweep(&boxes) {
+            Some(sweep) => {
+                analyze_from(mesh, pos, options, t0, crossings::BroadPhase::Sweep(sweep))
+            }
+            // Too many overlaps for the sweep: the hierarchy, in the pool (boxes built once).
+            None => {
+                let broad = crossings::BroadPhase::hierarchy(&boxes);
+                crate::pool::in_pool(|| analyze_from(mesh, pos, options, t0, broad))
+            }
+        };
     }
     crate::pool::in_pool(|| {
         let t0 = Instant::now();

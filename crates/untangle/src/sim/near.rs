@@ -7,7 +7,7 @@
 //! [`crate::sim::UniformThickness`] on a 20k-vertex shirt, whose shortest edges are 1.4 mm),
 //! proximity repulsion and the contact springs push such pairs apart *in the plane* every step
 //! and fight the stretch forces: the cloth inflates and the step count of impulses and impact
-//! zones explodes (BENCHMARKS.md, "Near pairs"). [`NearCapped`] wraps a
+//! zones explodes (BENCHMARKS.md, "Every target after session 26"). [`NearCapped`] wraps a
 //! [`ContactPolicy`] and lowers the thickness of such neighbour pairs to `fraction` times the
 //! shortest edge at their nodes (at the start of the step). The pairs are still handled, with
 //! that thickness, so a fold that brings a vertex through a neighbouring triangle is still

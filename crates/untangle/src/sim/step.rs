@@ -1579,12 +1579,11 @@ impl Simulator {
         let capped = (p.near_pair_fraction > 0.0)
             .then(|| NearCapped::new(policy, &topology, &triangles, &self.x, p.near_pair_fraction))
             .filter(NearCapped::binds);
-        self.step_with(&p, capped.as_ref().map_or(policy, |c| c as _), t0)
+        self.step_with(p, capped.as_ref().map_or(policy, |c| c as _), t0)
     }
 
-    /// [`Simulator::step_in_pool`] with the policy in force.
-    fn step_with(&mut self, p: &SimParams, policy: &dyn ContactPolicy, t0: Instant) -> StepReport {
-        let p = p.clone();
+    /// [`Simulator::step_in_pool`] with the policy in force (`p`: a copy of the parameters).
+    fn step_with(&mut self, p: SimParams, policy: &dyn ContactPolicy, t0: Instant) -> StepReport {
         let h = p.dt;
         let n = self.x.len();
         let inv_mass: Vec<f64> = (0..n)
@@ -1761,7 +1760,7 @@ fn low_rank_terms(
 
 /// Default [`SimParams::near_pair_fraction`]: a neighbour pair's thickness is at most a
 /// quarter of the shortest edge at its nodes (a flat cloth's neighbour pairs are at least
-/// about half an edge apart; BENCHMARKS.md, "Near pairs").
+/// about half an edge apart; BENCHMARKS.md, "Every target after session 26").
 pub const NEAR_PAIR_FRACTION: f64 = 0.25;
 
 /// Default cap of the CG iterations of one projective global step
