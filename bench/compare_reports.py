@@ -5,10 +5,10 @@ each on the same inputs and compares the reports with `timing_ms` removed.
 Usage (from the repository root):
     python3 bench/compare_reports.py OLD_BINARY NEW_BINARY [SHARED_DIR]
 
-Inputs: scenes written by the new binary (exploded seeds 0-7, folded sizes 30/60/125, the seven
-rudimentary cases), and, when SHARED_DIR (default ../shared) has them, the untangling26 units and
-the ARCSim garments (alone and all together). Prints one line per input and exits with 1 when any
-report differs. Used to show that a speed change left the analysis output unchanged."""
+Inputs: scenes written by the new binary (exploded seeds 0-7 and sizes 20/28/40, folded sizes
+22/30/40/60/125, the seven rudimentary cases), and, when SHARED_DIR (default ../shared) has them,
+the untangling26 units and the ARCSim garments (alone and all together). Prints one line per
+input and exits with 1 when any report differs. Used to show that a speed change left the analysis output unchanged."""
 import json, os, subprocess, sys, tempfile
 
 old, new = sys.argv[1], sys.argv[2]
@@ -26,7 +26,8 @@ def report(binary, files, out):
 with tempfile.TemporaryDirectory() as d:
     cases = []
     scenes = [("exploded", ["--seed", str(s)]) for s in range(8)]
-    scenes += [("folded", ["--size", str(n)]) for n in (30, 60, 125)]
+    scenes += [("exploded", ["--size", str(n), "--seed", "0"]) for n in (20, 28, 40)]
+    scenes += [("folded", ["--size", str(n)]) for n in (22, 30, 40, 60, 125)]
     scenes += [(k, []) for k in ("closed", "ll", "eight", "cross", "bbii", "bibi", "bli")]
     for name, extra in scenes:
         path = os.path.join(d, f"{name}{'_'.join([''] + extra)}.obj")

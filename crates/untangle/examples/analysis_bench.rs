@@ -73,6 +73,10 @@ fn main() {
             (177, 4),
             (224, 4),
             (250, 15),
+            (22, 4),
+            (30, 4),
+            (40, 4),
+            (64, 4),
         ] {
             let name = format!("folded n={n} dents={dents}");
             if let Some(o) = &only {

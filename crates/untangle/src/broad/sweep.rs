@@ -90,6 +90,30 @@ impl SweepAndPrune {
             .sum()
     }
 
+    /// The sweep's pairs whose first slot is a multiple of `stride`: `(x_pairs, overlapping)`,
+    /// the pairs it tests (x intervals overlap) and those of them whose boxes overlap. Their
+    /// ratio estimates how much of the sweep's work finds a pair: high on a crumpled ball, where
+    /// the sweep beats the hierarchy, low on a sheet (most boxes in an x slab lie apart in y or
+    /// z), where the hierarchy wins.
+    pub fn sampled_pairs(&self, stride: usize) -> (usize, usize) {
+        let n = self.len();
+        let m = &self.lanes[0][..n];
+        let (mut tested, mut found) = (0, 0);
+        let mut count = Vec::new();
+        for i in (0..n).step_by(stride.max(1)) {
+            tested += m[i + 1..].partition_point(|&x| x <= self.lanes[1][i]);
+            count.clear();
+            self.sweep_range(
+                None,
+                i..i + 1,
+                &|_, _, out: &mut Vec<()>| out.push(()),
+                &mut count,
+            );
+            found += count.len();
+        }
+        (tested, found)
+    }
+
     /// Calls `visit(i, j, out)` with *slot* indices `i < j` for every pair of boxes that overlap
     /// (as [`Aabb::overlaps`]), each pair once, and returns everything pushed to `out`, in an
     /// order independent of the number of threads.
@@ -393,6 +417,10 @@ mod tests {
                 .collect();
             got.sort();
             prop_assert!(s.x_pairs() >= got.len());
+            // The sample of every slot is the whole sweep; a sparser one is part of it.
+            prop_assert_eq!(s.sampled_pairs(1), (s.x_pairs(), got.len()));
+            let (t3, f3) = s.sampled_pairs(3);
+            prop_assert!(f3 <= t3 && t3 <= s.x_pairs() && f3 <= got.len());
             prop_assert_eq!(got, want);
             // Skipping the pairs of two quiet slots: exactly the other pairs, in the same
             // order for one and two threads.
