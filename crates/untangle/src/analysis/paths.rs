@@ -606,8 +606,13 @@ impl OddEdges {
 }
 
 /// Steps (pieces along the chains) from which [`trace_paths`] makes the paths of two halves of
-/// the chains side by side (see [`PAR_LINK_CROSSINGS`] for why not sooner).
-const PAR_PATH_STEPS: usize = 1 << 17;
+/// the chains side by side. On the exploded ball of 800 triangles (28k steps, analysed inside
+/// the pool) the split took the paths phase from 0.74 to 0.69-0.70 ms at two threads; at 4,096
+/// it also split the 392-triangle handkerchief (8.5k steps, analysed from outside the pool,
+/// where the join hands the work over), which then lost 10-15 % (BENCHMARKS.md, "Broad phase by
+/// density"). Linking (below [`PAR_LINK_CROSSINGS`]) gained nothing from a split at these
+/// sizes.
+const PAR_PATH_STEPS: usize = 1 << 14;
 
 /// Paths and tanglements of the given segments.
 pub fn trace_paths(
