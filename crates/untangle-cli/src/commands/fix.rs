@@ -19,13 +19,16 @@ use untangle::mesh::{obj, Garment, Mesh};
 use untangle::methods::cha_ko::{
     AdaptiveIntegrator, LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver,
 };
-use untangle::sim::Integrator;
+use untangle::sim::{Integrator, Simulator};
 
 /// Resolution methods.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Method {
     /// Cha & Ko 2022: uv-space vertex pull and triangle shrinkage with m-CCH.
     ChaKo,
+    /// Wicke et al. 2006, Sec. 5: RBF correspondences and penalty forces (the peer Cha & Ko
+    /// compare against; no convergence guarantee).
+    Wicke,
 }
 
 /// Arguments of `fix`.
@@ -39,7 +42,8 @@ pub struct Args {
     /// Write the untangled garment here (OBJ; original uv).
     #[arg(short = 'o', long)]
     pub out: PathBuf,
-    /// Resolution method (Cha & Ko, the default, is the only one so far).
+    /// Resolution method: `cha-ko` (the default; the options below without a method name are
+    /// its own unless they say otherwise) or `wicke`.
     #[arg(long, value_enum, default_value = "cha-ko")]
     pub method: Method,
     /// Write the JSON report (summary, every step, every operation, what is left) here.
@@ -179,6 +183,14 @@ pub struct Args {
     /// intersecting pairs) after which Baraff & Witkin takes over.
     #[arg(long, default_value_t = AdaptiveIntegrator::default().stall_steps)]
     pub adaptive_stall: usize,
+    /// `--method wicke`: the penalty force's stiffness `k` of Wicke's Eq. 4 and 6, as an
+    /// acceleration per metre of penetration (1/s^2). `--dt`, `--eps` (the thickness of pairs
+    /// that are not free), `--max-steps`, `--stuck-steps` and `--gravity` apply as well.
+    #[arg(long, allow_negative_numbers = true, default_value_t = untangle::methods::wicke::ForceParams::default().stiffness)]
+    pub wicke_stiffness: f64,
+    /// `--method wicke`: the force's cap `f_max` (Eq. 4 and 6) as an acceleration (m/s^2).
+    #[arg(long, allow_negative_numbers = true, default_value_t = untangle::methods::wicke::ForceParams::default().max_acceleration)]
+    pub wicke_max_acceleration: f64,
 }
 
 /// `fix --integrator` values.
@@ -282,14 +294,14 @@ impl FixRun {
 }
 
 /// Garment and body together for the analysis of what is written.
-struct Scene<'a> {
-    am: AnalysisMesh,
-    pos: Vec<Vec3>,
+pub(crate) struct Scene<'a> {
+    pub(crate) am: AnalysisMesh,
+    pub(crate) pos: Vec<Vec3>,
     garment: &'a Mesh,
 }
 
 impl<'a> Scene<'a> {
-    fn new(garment: &'a Mesh, body: Option<&Body>) -> Result<Scene<'a>> {
+    pub(crate) fn new(garment: &'a Mesh, body: Option<&Body>) -> Result<Scene<'a>> {
         let mut parts = vec![(garment, ObjectKind::Cloth)];
         if let Some(b) = body {
             parts.push((&b.mesh, ObjectKind::Obstacle));
@@ -298,8 +310,8 @@ impl<'a> Scene<'a> {
         Ok(Scene { am, pos, garment })
     }
 
-    fn analyse(&mut self, r: &Resolver) -> Result<Analysis> {
-        let sim = r.simulator();
+    /// The analysis of the simulator's cloth (and its body at the start of the next step).
+    pub(crate) fn analyse(&mut self, sim: &Simulator) -> Result<Analysis> {
         let n = sim.positions().len();
         self.pos[..n].copy_from_slice(sim.positions());
         if self.pos.len() > n {
@@ -309,7 +321,7 @@ impl<'a> Scene<'a> {
     }
 
     /// The garment coloured by `a`, with the intersection curves as polylines.
-    fn colored_obj(&self, a: &Analysis, header: &str) -> String {
+    pub(crate) fn colored_obj(&self, a: &Analysis, header: &str) -> String {
         let n = self.garment.positions.len();
         let mut m = self.garment.clone();
         m.positions = self.pos[..n].to_vec();
@@ -347,7 +359,7 @@ pub fn untangle(
         resolver.simulator_mut().set_pinned(v, true)?;
     }
     let mut scene = Scene::new(&garment.mesh, setup.body)?;
-    let initial_analysis = scene.analyse(&resolver)?;
+    let initial_analysis = scene.analyse(resolver.simulator())?;
     let initial_pos = scene.pos.clone();
     if let Some((dir, _)) = setup.frames {
         std::fs::create_dir_all(dir)
@@ -406,7 +418,7 @@ pub fn untangle(
         if let Some((dir, every)) = setup.frames {
             let done = resolver.stop_reason().is_some();
             if (k + 1) % every.max(1) == 0 || done {
-                let a = scene.analyse(&resolver)?;
+                let a = scene.analyse(resolver.simulator())?;
                 let text = scene.colored_obj(&a, &format!("untangle fix: after step {}", k + 1));
                 write_frame(dir, k + 1, &text)?;
             }
@@ -414,7 +426,7 @@ pub fn untangle(
     };
     pb.finish_and_clear();
     let summary = resolver.summary(outcome);
-    let final_analysis = scene.analyse(&resolver)?;
+    let final_analysis = scene.analyse(resolver.simulator())?;
     let final_pos = scene.pos.clone();
     let mut out_mesh = garment.mesh.clone();
     out_mesh.positions = resolver.simulator().positions().to_vec();
@@ -458,7 +470,7 @@ pub fn untangle(
 }
 
 /// Why a run whose input already penetrates the body cannot end clean, and what to do.
-fn body_note(pairs: usize) -> String {
+pub(crate) fn body_note(pairs: usize) -> String {
     format!(
         "the input cloth already intersects the body ({pairs} triangle pairs): collision handling \
          keeps the cloth on the side of the body it starts on, so these stay; place the body \
@@ -467,7 +479,7 @@ fn body_note(pairs: usize) -> String {
     )
 }
 
-fn write_frame(dir: &Path, k: usize, text: &str) -> Result<()> {
+pub(crate) fn write_frame(dir: &Path, k: usize, text: &str) -> Result<()> {
     untangle::fsio::write_atomic(&dir.join(format!("frame_{k:04}.obj")), text.as_bytes())?;
     Ok(())
 }
@@ -579,7 +591,6 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
             }
         }
     }
-    let Method::ChaKo = args.method;
     let garment = read_garment(&args.files)?;
     let body = match &args.body {
         Some(p) => Some(load_body(p, &args.placement)?),
@@ -602,6 +613,9 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         pinned: &pinned,
         frames: args.frames.as_deref().map(|d| (d, args.frame_every)),
     };
+    if args.method == Method::Wicke {
+        return super::fix_wicke::run(&args, &garment, &setup, ctx);
+    }
     let fix = untangle(&garment, args.params(), &setup, ctx)?;
     obj::write_obj(
         &args.out,
