@@ -48,7 +48,10 @@ fn fixes_a_bbii_case_and_reports_every_step() {
     assert!(steps.len() >= 2);
     assert!(steps[0]["intersecting_pairs"].as_u64().unwrap() > 0);
     assert!(steps[0]["inside_points"].as_u64().unwrap() > 0);
-    assert_eq!(steps.last().unwrap()["intersecting_pairs"], 0);
+    // Each entry is a simulator step (pairs at its start); the clean state after the last one
+    // is the output.
+    assert_eq!(rep["steps_run"].as_u64().unwrap() as usize, steps.len());
+    assert_eq!(rep["output_intersecting_pairs"], 0);
 }
 
 #[test]
@@ -97,4 +100,51 @@ fn exit_1_with_what_is_left_and_exit_2_on_bad_settings() {
         );
         assert!(!x.exists());
     }
+}
+
+#[test]
+fn combined_fixes_an_exploded_handkerchief_in_stages() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("ex.obj");
+    let out = dir.path().join("fixed.obj");
+    let json = dir.path().join("rep.json");
+    assert!(untangle()
+        .args(["scene", "exploded", "--seed", "4", "-o"])
+        .arg(&input)
+        .status()
+        .unwrap()
+        .success());
+    let o = untangle()
+        .args(["fix", "--method", "combined"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("stages: Wicke pre-pass "), "{stdout}");
+    let check = untangle().arg("check").arg(&out).output().unwrap();
+    assert_eq!(check.status.code(), Some(0), "the output is clean");
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(rep["method"], "combined");
+    let st = &rep["stage_steps"];
+    let n = st["prepass"].as_u64().unwrap()
+        + st["cha_ko"].as_u64().unwrap()
+        + st["finish"].as_u64().unwrap();
+    assert_eq!(n as usize, rep["steps"].as_array().unwrap().len());
+    assert_eq!(rep["steps"][0]["stage"], "prepass");
+    assert!(rep["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|s| s["stage"] == "cha_ko" && s["red_vertices"].is_u64()));
 }

@@ -2,17 +2,23 @@
 //! Cha & Ko 2022 (`methods::cha_ko`) on the same scenes and simulator: the six rudimentary
 //! cases of Cha & Ko Fig. 13 and exploded handkerchiefs (Sec. 9.2), gravity off. Per scene and
 //! method: outcome, steps, whether an independent analysis of the final positions is clean,
-//! and the wall time. `WICKE_K` / `WICKE_AMAX` override the force settings.
+//! and the wall time. `WICKE_K` / `WICKE_AMAX` override the force settings; `WICKE_ONLY=1`
+//! skips Cha & Ko. `COMBINED=P` runs the combined method (`methods::combined`, pre-pass
+//! patience `P`) on the exploded seeds instead, with steps per stage; `GARMENTS=S` compares the
+//! three methods on the ARCSim garments sagged `S` steps with self-collision off.
 //!
 //! ```text
 //! cargo run --release -p untangle --example wicke_bench -- [first_seed] [last_seed] [max_steps] [rudimentary|exploded|all]
 //! ```
+
+mod common;
 
 use std::time::Instant;
 use untangle::analysis::{analyze, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
 use untangle::methods::cha_ko::{ResolveParams, Resolver};
+use untangle::methods::combined::{CombinedParams, CombinedResolver};
 use untangle::methods::wicke::{WickeParams, WickeResolver};
 
 fn run_wicke(g: &Garment, max_steps: usize) -> (String, usize, bool, f64, f64) {
@@ -73,7 +79,178 @@ fn run_chako(g: &Garment, max_steps: usize) -> (String, usize, bool, f64, f64) {
     )
 }
 
+/// The combined loop (`methods::combined`: Wicke pre-pass, Cha & Ko, Wicke finish) with
+/// pre-pass patience `patience`: (steps per stage, outcome, clean by an independent analysis,
+/// wall).
+fn run_combined(g: &Garment, max_steps: usize, patience: usize) -> ([usize; 3], String, bool, f64) {
+    let (am, _) = AnalysisMesh::single(&g.mesh).expect("analysable");
+    let mut p = CombinedParams {
+        prepass_patience: patience,
+        max_steps,
+        ..Default::default()
+    };
+    p.wicke.sim.gravity = Vec3::zeros();
+    p.cha_ko.sim.gravity = Vec3::zeros();
+    let t = Instant::now();
+    let mut r = CombinedResolver::new(g, p).expect("loop");
+    let o = r.run(|_| {}).expect("runs");
+    let clean = analyze(&am, r.positions())
+        .map(|a| a.is_clean())
+        .unwrap_or(false);
+    (
+        r.stage_steps(),
+        format!("{o:?}"),
+        clean,
+        t.elapsed().as_secs_f64(),
+    )
+}
+
+/// The ARCSim garments (tshirt, dress3, pants3, refined to >= 2,000 vertices), sagged with
+/// self-collision off for `sag` steps (as `cha_ko_garments`), then untangled by each method
+/// with the same pins and gravity: one row per garment and method.
+fn garments(sag: usize, max_steps: usize) {
+    use untangle::mesh::subdivide;
+    use untangle::scenes::sagged;
+    println!("| garment | vertices | pairs after sagging | method | outcome | steps (pre-pass / Cha & Ko / finish) | clean | wall s |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for name in ["tshirt", "dress3", "pants3"] {
+        let Some(mut mesh) = common::arcsim_mesh(name) else {
+            println!("garments: skipped (no ../shared data)");
+            return;
+        };
+        while mesh.positions.len() < 2000 {
+            mesh = subdivide::subdivide(&mesh);
+        }
+        let g = Garment::new(mesh.clone()).expect("garment");
+        let gravity = sagged::GRAVITY_Z;
+        let pins = sagged::top_vertices(&mesh, &Vec3::z(), 0.03);
+        let tangled = sagged::sagged(&g, gravity, &pins, sag).expect("sagging");
+        let (am, _) = AnalysisMesh::single(&tangled).expect("analysis mesh");
+        let pairs = analyze(&am, &tangled.positions)
+            .expect("analysis")
+            .segments
+            .len();
+        let tg = Garment::new(tangled).expect("garment");
+        let clean = |x: &[Vec3]| analyze(&am, x).map(|a| a.is_clean()).unwrap_or(false);
+        let row = |method: &str, o: String, steps: String, ok: bool, wall: f64| {
+            println!(
+                "| {name} | {} | {pairs} | {method} | {o} | {steps} | {ok} | {wall:.1} |",
+                mesh.positions.len()
+            );
+        };
+        // Cha & Ko.
+        let t = Instant::now();
+        let mut p = ResolveParams::default();
+        p.sim.gravity = gravity;
+        p.max_steps = max_steps;
+        let mut r = Resolver::new(&tg, p).expect("loop");
+        for &v in &pins {
+            r.simulator_mut().set_pinned(v, true).expect("pin");
+        }
+        let s = r.run(|_| {}).expect("runs");
+        let ok = clean(r.simulator().positions());
+        row(
+            "cha-ko",
+            format!("{:?}", s.outcome),
+            s.steps.to_string(),
+            ok,
+            t.elapsed().as_secs_f64(),
+        );
+        // Wicke.
+        let t = Instant::now();
+        let mut p = WickeParams::default();
+        p.sim.gravity = gravity;
+        p.max_steps = max_steps;
+        let mut w = WickeResolver::new(&tg, &am, p).expect("loop");
+        for &v in &pins {
+            w.simulator_mut().set_pinned(v, true).expect("pin");
+        }
+        let o = w.run(|_| {}).expect("runs");
+        let ok = clean(w.simulator().positions());
+        let n = w
+            .history()
+            .iter()
+            .filter(|s| s.intersecting_pairs > 0)
+            .count();
+        row(
+            "wicke",
+            format!("{o:?}"),
+            n.to_string(),
+            ok,
+            t.elapsed().as_secs_f64(),
+        );
+        // Combined.
+        let t = Instant::now();
+        let mut p = CombinedParams {
+            max_steps,
+            ..Default::default()
+        };
+        p.wicke.sim.gravity = gravity;
+        p.cha_ko.sim.gravity = gravity;
+        let mut c = CombinedResolver::new(&tg, p).expect("loop");
+        for &v in &pins {
+            c.pin(v).expect("pin");
+        }
+        let o = c.run(|_| {}).expect("runs");
+        let ok = clean(c.positions());
+        let n = c.stage_steps();
+        row(
+            "combined",
+            format!("{o:?}"),
+            format!(
+                "{} ({} / {} / {})",
+                n.iter().sum::<usize>(),
+                n[0],
+                n[1],
+                n[2]
+            ),
+            ok,
+            t.elapsed().as_secs_f64(),
+        );
+    }
+}
+
 fn main() {
+    if let Ok(sag) = std::env::var("GARMENTS") {
+        garments(sag.parse().expect("GARMENTS"), 600);
+        return;
+    }
+    if let Ok(pat) = std::env::var("COMBINED") {
+        let patience: usize = pat.parse().expect("COMBINED");
+        let args: Vec<String> = std::env::args().collect();
+        let num = |i: usize, d: u64| {
+            args.get(i)
+                .map(|s| s.parse().expect("a number"))
+                .unwrap_or(d)
+        };
+        let (first, last, max_steps) = (num(1, 1), num(2, 10), num(3, 2000) as usize);
+        println!("| seed | pre-pass steps | Cha & Ko steps | finish steps | total | outcome | clean | wall s |");
+        println!("|---|---|---|---|---|---|---|---|");
+        let mut totals = Vec::new();
+        for seed in first..=last {
+            let s = untangle::scenes::exploded::exploded(seed, 14);
+            let g = Garment::new(s.meshes[0].clone()).expect("garment");
+            let (n, o, clean, wall) = run_combined(&g, max_steps, patience);
+            let total = n.iter().sum::<usize>();
+            println!(
+                "| {seed} | {} | {} | {} | {total} | {o} | {clean} | {wall:.2} |",
+                n[0], n[1], n[2]
+            );
+            if clean {
+                totals.push(total);
+            }
+        }
+        totals.sort_unstable();
+        if !totals.is_empty() {
+            let m = totals.len();
+            let median = (totals[(m - 1) / 2] + totals[m / 2]) as f64 / 2.0;
+            println!(
+                "clean {m} / {}, median total steps (clean seeds) {median}",
+                last - first + 1
+            );
+        }
+        return;
+    }
     let args: Vec<String> = std::env::args().collect();
     let num = |i: usize, d: u64| {
         args.get(i)

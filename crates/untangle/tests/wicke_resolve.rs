@@ -264,3 +264,95 @@ fn exploded_handkerchief_stops_with_a_reason() {
         WickeOutcome::Stuck | WickeOutcome::StepLimit | WickeOutcome::Resolved
     ));
 }
+
+mod combined {
+    use super::*;
+    use untangle::methods::cha_ko::{ResolveParams, Resolver};
+    use untangle::methods::combined::{CombinedOutcome, CombinedParams, CombinedResolver, Stage};
+
+    fn params(patience: usize) -> CombinedParams {
+        let mut p = CombinedParams {
+            prepass_patience: patience,
+            max_steps: 600,
+            ..Default::default()
+        };
+        p.wicke.sim.gravity = Vec3::zeros();
+        p.cha_ko.sim.gravity = Vec3::zeros();
+        p
+    }
+
+    /// The exploded handkerchief: the pre-pass runs until the pair count misses a new low, Cha
+    /// & Ko finishes from the pre-pass's best state, and an independent analysis finds the
+    /// result clean. Oracle for the hand-over: with no pre-pass the combined loop is Cha & Ko's
+    /// loop step for step (same pair counts).
+    #[test]
+    fn exploded_handkerchief_resolves_in_stages() {
+        let s = untangle::scenes::exploded::exploded(4, 14);
+        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
+        let mut r = CombinedResolver::new(&g, params(1)).unwrap();
+        let o = r.run(|_| {}).unwrap();
+        assert_eq!(o, CombinedOutcome::Resolved);
+        assert!(analyze(&am, r.positions()).unwrap().is_clean());
+        let n = r.stage_steps();
+        assert!(n[0] >= 2 && n[1] > 0, "{n:?}");
+        let h = r.history();
+        // Stages in order; the pre-pass stops at the first step that is not a new low.
+        assert!(h
+            .windows(2)
+            .all(|w| w[0].stage() as u8 <= w[1].stage() as u8));
+        let pre: Vec<usize> = h
+            .iter()
+            .filter(|s| s.stage() == Stage::Prepass)
+            .map(|s| s.intersecting_pairs())
+            .collect();
+        assert!(
+            pre[..pre.len() - 1].windows(2).all(|w| w[1] < w[0]),
+            "{pre:?}"
+        );
+        assert!(pre[pre.len() - 1] >= *pre[..pre.len() - 1].iter().min().unwrap());
+        // Cha & Ko starts from the best pre-pass state.
+        let first_chako = h.iter().find(|s| s.stage() == Stage::ChaKo).unwrap();
+        assert_eq!(first_chako.intersecting_pairs(), *pre.iter().min().unwrap());
+
+        // No pre-pass: Cha & Ko's own loop, step for step.
+        let mut c = CombinedResolver::new(&g, params(0)).unwrap();
+        c.run(|_| {}).unwrap();
+        let mut cp = ResolveParams::default();
+        cp.sim.gravity = Vec3::zeros();
+        cp.max_steps = 600;
+        let mut plain = Resolver::new(&g, cp).unwrap();
+        plain.run(|_| {}).unwrap();
+        let a: Vec<usize> = c.history().iter().map(|s| s.intersecting_pairs()).collect();
+        let b: Vec<usize> = plain
+            .history()
+            .iter()
+            .map(|s| s.intersecting_pairs)
+            .collect();
+        assert_eq!(a, b);
+    }
+
+    /// A case the pre-pass resolves alone never reaches Cha & Ko.
+    #[test]
+    fn closed_case_ends_in_the_prepass() {
+        let g = scene_garment("closed");
+        let mut r = CombinedResolver::new(&g, params(1)).unwrap();
+        assert_eq!(r.run(|_| {}).unwrap(), CombinedOutcome::Resolved);
+        let n = r.stage_steps();
+        assert!(n[0] > 0 && n[1] == 0 && n[2] == 0, "{n:?}");
+        assert!(r.simulator().is_none());
+    }
+
+    /// The step budget covers all stages.
+    #[test]
+    fn the_budget_is_shared() {
+        let s = untangle::scenes::exploded::exploded(2, 14);
+        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let mut p = params(1);
+        p.max_steps = 12;
+        let mut r = CombinedResolver::new(&g, p).unwrap();
+        let o = r.run(|_| {}).unwrap();
+        assert_eq!(o, CombinedOutcome::StepLimit);
+        assert!(r.history().len() <= 13, "{}", r.history().len());
+    }
+}

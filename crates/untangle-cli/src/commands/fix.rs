@@ -29,6 +29,9 @@ pub enum Method {
     /// Wicke et al. 2006, Sec. 5: RBF correspondences and penalty forces (the peer Cha & Ko
     /// compare against; no convergence guarantee).
     Wicke,
+    /// Ours: Wicke's forces until the pair count stops falling, Cha & Ko from the best state,
+    /// Wicke again on what Cha & Ko leaves (`methods::combined`; static bodies only).
+    Combined,
 }
 
 /// Arguments of `fix`.
@@ -43,7 +46,8 @@ pub struct Args {
     #[arg(short = 'o', long)]
     pub out: PathBuf,
     /// Resolution method: `cha-ko` (the default; the options below without a method name are
-    /// its own unless they say otherwise) or `wicke`.
+    /// its own unless they say otherwise), `wicke`, or `combined` (Wicke's forces, then Cha &
+    /// Ko, then Wicke on what is left; fewer steps on dense tangles, see BENCHMARKS.md).
     #[arg(long, value_enum, default_value = "cha-ko")]
     pub method: Method,
     /// Write the JSON report (summary, every step, every operation, what is left) here.
@@ -486,7 +490,7 @@ pub(crate) fn write_frame(dir: &Path, k: usize, text: &str) -> Result<()> {
 
 /// The per-step entry of the report: what the analysis saw at the start of the step, what the
 /// uv update applied, and the time.
-fn step_json(s: &LoopStep) -> serde_json::Value {
+pub(crate) fn step_json(s: &LoopStep) -> serde_json::Value {
     serde_json::json!({
         "step": s.step,
         "red_vertices": s.red_vertices,
@@ -613,8 +617,10 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         pinned: &pinned,
         frames: args.frames.as_deref().map(|d| (d, args.frame_every)),
     };
-    if args.method == Method::Wicke {
-        return super::fix_wicke::run(&args, &garment, &setup, ctx);
+    match args.method {
+        Method::Wicke => return super::fix_wicke::run(&args, "wicke", &garment, &setup, ctx),
+        Method::Combined => return super::fix_wicke::run(&args, "combined", &garment, &setup, ctx),
+        Method::ChaKo => {}
     }
     let fix = untangle(&garment, args.params(), &setup, ctx)?;
     obj::write_obj(

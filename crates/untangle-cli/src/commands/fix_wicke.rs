@@ -1,6 +1,7 @@
-//! `untangle fix --method wicke`: Wicke et al. 2006, Sec. 5 (RBF correspondences from the
-//! intersection paths to their inside regions, penalty forces toward the targets, BI/BI pairs
-//! pushed to the boundary) inside the same simulator as `--method cha-ko`, with the same
+//! `untangle fix --method wicke` and `--method combined`: Wicke et al. 2006, Sec. 5 (RBF
+//! correspondences from the intersection paths to their inside regions, penalty forces toward
+//! the targets, BI/BI pairs pushed to the boundary) inside the same simulator as `--method
+//! cha-ko`, alone or as the stages around Cha & Ko's loop (`methods::combined`), with the same
 //! inputs, outputs and exit codes (0: the output is free of intersections by the analysis, 1:
 //! the run stopped with tanglements left, 2: error).
 
@@ -11,7 +12,94 @@ use untangle::analysis::report::Report;
 use untangle::analysis::{Analysis, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::{obj, Garment};
+use untangle::methods::combined::{CombinedParams, CombinedResolver, CombinedStep};
 use untangle::methods::wicke::{WickeOutcome, WickeParams, WickeResolver, WickeStep};
+use untangle::sim::Simulator;
+
+/// The loop being run: Wicke's alone, or the combined stages.
+enum Runner {
+    Wicke(Box<WickeResolver>),
+    Combined(Box<CombinedResolver>),
+}
+
+impl Runner {
+    fn simulator(&self) -> Option<&Simulator> {
+        match self {
+            Runner::Wicke(w) => Some(w.simulator()),
+            Runner::Combined(c) => c.simulator(),
+        }
+    }
+
+    fn positions(&self) -> &[Vec3] {
+        match self {
+            Runner::Wicke(w) => w.simulator().positions(),
+            Runner::Combined(c) => c.positions(),
+        }
+    }
+
+    /// Whether the loop has stopped, and how (a word for the summary, the JSON outcome).
+    fn stopped(&self) -> Option<(&'static str, String)> {
+        match self {
+            Runner::Wicke(w) => w.stop_reason().map(|o| {
+                let word = match o {
+                    WickeOutcome::Resolved => "resolved",
+                    WickeOutcome::StepLimit => "step limit reached",
+                    WickeOutcome::Stuck => "stuck",
+                };
+                (word, format!("{o:?}"))
+            }),
+            Runner::Combined(c) => c.stop_reason().map(|o| {
+                let word = match o {
+                    untangle::methods::combined::CombinedOutcome::Resolved => "resolved",
+                    untangle::methods::combined::CombinedOutcome::StepLimit => "step limit reached",
+                    untangle::methods::combined::CombinedOutcome::Unresolved => "stuck",
+                };
+                (word, format!("{o:?}"))
+            }),
+        }
+    }
+
+    /// One step: `None` once stopped, else the pairs at its start and its report entry. A
+    /// Wicke pass that only analysed (and found the cloth clean) is not a step.
+    fn step(&mut self, k: usize) -> Result<Option<(usize, serde_json::Value)>> {
+        match self {
+            Runner::Wicke(w) => {
+                if w.stop_reason().is_some() {
+                    return Ok(None);
+                }
+                let (s, stepped) = w.step().context("wicke step")?;
+                Ok(stepped.map(|_| (s.intersecting_pairs, step_json(k, "prepass", &s))))
+            }
+            Runner::Combined(c) => Ok(c.step().context("combined step")?.map(|s| {
+                let json = match &s {
+                    CombinedStep::Wicke(stage, w) => step_json(
+                        k,
+                        if *stage == untangle::methods::combined::Stage::Prepass {
+                            "prepass"
+                        } else {
+                            "finish"
+                        },
+                        w,
+                    ),
+                    CombinedStep::ChaKo(l) => {
+                        let mut j = super::fix::step_json(l);
+                        j["step"] = serde_json::json!(k);
+                        j["stage"] = serde_json::json!("cha_ko");
+                        j
+                    }
+                };
+                (s.intersecting_pairs(), json)
+            })),
+        }
+    }
+
+    fn ms(&self) -> f64 {
+        match self {
+            Runner::Wicke(w) => w.history().iter().map(|s| s.ms.iter().sum::<f64>()).sum(),
+            Runner::Combined(c) => c.history().iter().map(CombinedStep::ms).sum(),
+        }
+    }
+}
 
 /// The loop's settings from the command line.
 pub fn params(args: &Args) -> WickeParams {
@@ -26,10 +114,11 @@ pub fn params(args: &Args) -> WickeParams {
     p
 }
 
-/// The per-step entry of the report.
-fn step_json(k: usize, s: &WickeStep) -> serde_json::Value {
+/// The per-step entry of the report for a step of Wicke's loop.
+fn step_json(k: usize, stage: &str, s: &WickeStep) -> serde_json::Value {
     serde_json::json!({
         "step": k,
+        "stage": stage,
         "intersecting_pairs": s.intersecting_pairs,
         "tanglements": s.tanglements,
         "inside_points": s.forces.inside_points,
@@ -44,30 +133,78 @@ fn step_json(k: usize, s: &WickeStep) -> serde_json::Value {
     })
 }
 
-/// Runs the loop, writes the mesh, the report and the frames, prints the summary; the exit
-/// code.
-pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Result<u8> {
+/// The combined loop's settings from the command line (Cha & Ko's options for its stage,
+/// Wicke's for the others).
+pub fn combined_params(args: &Args) -> CombinedParams {
+    CombinedParams {
+        wicke: params(args),
+        cha_ko: args.params(),
+        max_steps: args.max_steps,
+        ..Default::default()
+    }
+}
+
+/// Runs the loop (`wicke` or `combined`), writes the mesh, the report and the frames, prints
+/// the summary; the exit code.
+pub fn run(
+    args: &Args,
+    method: &str,
+    garment: &Garment,
+    setup: &Setup,
+    ctx: &Context,
+) -> Result<u8> {
     if setup.body_frame_steps == 0 {
         bail!("--body-frame-steps must be at least 1");
     }
+    let combined = method == "combined";
+    if combined && setup.body.is_some_and(|b| b.frames.len() > 1) {
+        bail!(
+            "--method combined takes a static body only (one OBJ file, not a directory of frames)"
+        );
+    }
     let p = params(args);
+    let cp = combined_params(args);
     let max_steps = p.max_steps;
     let (am, _) = AnalysisMesh::single(&garment.mesh)?;
-    let mut resolver = WickeResolver::new(garment, &am, p.clone()).context("wicke")?;
-    if let Some(b) = setup.body {
-        resolver
-            .simulator_mut()
-            .add_obstacle(untangle::sim::Obstacle::from_mesh(
-                &b.mesh,
-                setup.body_thickness,
-                0.3,
-            )?)?;
-    }
-    for &v in setup.pinned {
-        resolver.simulator_mut().set_pinned(v, true)?;
-    }
+    let obstacle = match setup.body {
+        Some(b) => Some(untangle::sim::Obstacle::from_mesh(
+            &b.mesh,
+            setup.body_thickness,
+            0.3,
+        )?),
+        None => None,
+    };
+    let mut runner = if combined {
+        let mut c = CombinedResolver::new(garment, cp.clone()).context("combined")?;
+        if let Some(o) = &obstacle {
+            c.add_obstacle(o.clone())?;
+        }
+        for &v in setup.pinned {
+            c.pin(v)?;
+        }
+        Runner::Combined(Box::new(c))
+    } else {
+        let mut w = WickeResolver::new(garment, &am, p.clone()).context("wicke")?;
+        if let Some(o) = &obstacle {
+            w.simulator_mut().add_obstacle(o.clone())?;
+        }
+        for &v in setup.pinned {
+            w.simulator_mut().set_pinned(v, true)?;
+        }
+        Runner::Wicke(Box::new(w))
+    };
     let mut scene = Scene::new(&garment.mesh, setup.body)?;
-    let initial = scene.analyse(resolver.simulator())?;
+    let analyse = |scene: &mut Scene, runner: &Runner| -> Result<Analysis> {
+        match runner.simulator() {
+            Some(sim) => scene.analyse(sim),
+            None => {
+                let n = garment.mesh.positions.len();
+                scene.pos[..n].copy_from_slice(runner.positions());
+                untangle::analysis::analyze(&scene.am, &scene.pos).context("intersection analysis")
+            }
+        }
+    };
+    let initial = analyse(&mut scene, &runner)?;
     let initial_pos = scene.pos.clone();
     if let Some((dir, _)) = setup.frames {
         std::fs::create_dir_all(dir)
@@ -75,7 +212,7 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
         write_frame(
             dir,
             0,
-            &scene.colored_obj(&initial, "untangle fix --method wicke: input"),
+            &scene.colored_obj(&initial, &format!("untangle fix --method {method}: input")),
         )?;
     }
     let body_pairs = |am: &AnalysisMesh, pos: &[Vec3], a: &Analysis| -> usize {
@@ -102,102 +239,124 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
     let body_span = setup.body.map_or(0, |b| {
         (b.frames.len().saturating_sub(1)) * setup.body_frame_steps
     });
-    let outcome = loop {
-        if let Some(o) = resolver.stop_reason() {
-            break o;
-        }
-        let k = resolver.history().len();
-        if let Some(b) = setup.body {
-            if b.frames.len() > 1 {
+    let mut steps_json = Vec::new();
+    loop {
+        let k = steps_json.len();
+        if let (Some(b), Runner::Wicke(w)) = (setup.body, &mut runner) {
+            if b.frames.len() > 1 && w.stop_reason().is_none() {
                 let next = super::simulate::body_at(b, (k + 1).min(body_span), body_span);
-                resolver
-                    .simulator_mut()
-                    .set_obstacle_next_positions(0, &next)?;
+                w.simulator_mut().set_obstacle_next_positions(0, &next)?;
             }
         }
-        let (rec, stepped) = resolver.step().context("wicke step")?;
-        pb.set_position(initial_pairs.saturating_sub(rec.intersecting_pairs as u64));
-        pb.set_message(format!(
-            "step {}/{max_steps}: {} pairs",
-            k + 1,
-            rec.intersecting_pairs
-        ));
-        if let (Some((dir, every)), Some(_)) = (setup.frames, stepped) {
-            let done = resolver.stop_reason().is_some();
-            if (k + 1) % every.max(1) == 0 || done {
-                let a = scene.analyse(resolver.simulator())?;
+        let Some((pairs, json)) = runner.step(k)? else {
+            break;
+        };
+        steps_json.push(json);
+        pb.set_position(initial_pairs.saturating_sub(pairs as u64));
+        pb.set_message(format!("step {}/{max_steps}: {pairs} pairs", k + 1));
+        if let Some((dir, every)) = setup.frames {
+            if (k + 1) % every.max(1) == 0 {
+                let a = analyse(&mut scene, &runner)?;
                 let text = scene.colored_obj(
                     &a,
-                    &format!("untangle fix --method wicke: after step {}", k + 1),
+                    &format!("untangle fix --method {method}: after step {}", k + 1),
                 );
                 write_frame(dir, k + 1, &text)?;
             }
         }
-    };
+    }
     pb.finish_and_clear();
-    let final_analysis = scene.analyse(resolver.simulator())?;
+    let (word, outcome) = runner
+        .stopped()
+        .unwrap_or(("stopped", "Stopped".to_string()));
+    let final_analysis = analyse(&mut scene, &runner)?;
     let final_pos = scene.pos.clone();
     let clean = final_analysis.is_clean();
-    // Steps that moved the cloth (the last pass only analysed when it found the cloth clean).
-    let steps = resolver
-        .history()
-        .iter()
-        .filter(|s| s.intersecting_pairs > 0)
-        .count();
+    let steps = steps_json.len();
+    if let Some((dir, every)) = setup.frames {
+        if steps % every.max(1) != 0 || steps == 0 {
+            let text = scene.colored_obj(
+                &final_analysis,
+                &format!("untangle fix --method {method}: after step {steps}"),
+            );
+            write_frame(dir, steps, &text)?;
+        }
+    }
     let mut out_mesh = garment.mesh.clone();
-    out_mesh.positions = resolver.simulator().positions().to_vec();
+    out_mesh.positions = runner.positions().to_vec();
     obj::write_obj(
         &args.out,
         &out_mesh,
         None,
-        &format!("untangle fix --method wicke: {outcome:?} after {steps} steps"),
+        &format!("untangle fix --method {method}: {outcome} after {steps} steps"),
     )?;
-    let history = resolver.history();
-    let total_ms: f64 = history.iter().map(|s| s.ms.iter().sum::<f64>()).sum();
+    let total_ms = runner.ms();
+    let stage_steps = match &runner {
+        Runner::Combined(c) => Some(c.stage_steps()),
+        Runner::Wicke(_) => None,
+    };
     if let Some(j) = &args.json {
         let final_report = Report::new(&scene.am, &final_pos, &final_analysis);
         let final_json: serde_json::Value = serde_json::from_str(&final_report.to_json())?;
+        let mut params_json = serde_json::json!({
+            "stiffness": p.forces.stiffness,
+            "max_acceleration": p.forces.max_acceleration,
+            "max_centers": p.forces.max_centers,
+            "symmetric": p.forces.symmetric,
+            "thickness": p.thickness,
+            "dt": p.sim.dt,
+            "max_steps": p.max_steps,
+            "stuck_steps": p.stuck_steps,
+        });
+        if combined {
+            params_json = serde_json::json!({
+                "wicke": params_json,
+                "cha_ko": cp.cha_ko.cha_ko,
+                "prepass_patience": cp.prepass_patience,
+                "finish_steps": cp.finish_steps,
+                "max_steps": cp.max_steps,
+            });
+        }
         let report = serde_json::json!({
-            "method": "wicke",
+            "method": method,
             "input": args.files.iter().map(|f| f.display().to_string()).collect::<Vec<_>>(),
             "vertices": garment.mesh.positions.len(),
             "triangles": garment.mesh.triangles.len(),
             "pinned": setup.pinned.len(),
-            "params": {
-                "stiffness": p.forces.stiffness,
-                "max_acceleration": p.forces.max_acceleration,
-                "max_centers": p.forces.max_centers,
-                "symmetric": p.forces.symmetric,
-                "thickness": p.thickness,
-                "dt": p.sim.dt,
-                "max_steps": p.max_steps,
-                "stuck_steps": p.stuck_steps,
-            },
-            "outcome": format!("{outcome:?}"),
+            "params": params_json,
+            "outcome": outcome,
             "steps_run": steps,
+            "stage_steps": stage_steps.map(|n| serde_json::json!({
+                "prepass": n[0], "cha_ko": n[1], "finish": n[2],
+            })),
             "output_intersection_free": clean,
             "output_intersecting_pairs": final_analysis.segments.len(),
             "input_intersecting_pairs": initial.segments.len(),
             "input_body_intersecting_pairs": input_body_pairs,
             "timing_ms": { "total": total_ms },
-            "steps": history.iter().enumerate().map(|(k, s)| step_json(k, s)).collect::<Vec<_>>(),
+            "steps": steps_json,
             "final_analysis": final_json,
         });
         untangle::fsio::write_atomic(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }
     if !ctx.quiet {
-        let what = match outcome {
-            WickeOutcome::Resolved if clean => "resolved",
-            WickeOutcome::Resolved => "cloth tanglements resolved",
-            WickeOutcome::StepLimit => "step limit reached",
-            WickeOutcome::Stuck => "stuck",
+        let what = if word == "resolved" && !clean {
+            "cloth tanglements resolved"
+        } else {
+            word
         };
         println!(
-            "wicke: {what} after {steps} step{}: {} -> {} intersecting triangle pairs",
+            "{method}: {what} after {steps} step{}: {} -> {} intersecting triangle pairs",
             if steps == 1 { "" } else { "s" },
             initial.segments.len(),
             final_analysis.segments.len()
         );
+        if let Some(n) = stage_steps {
+            println!(
+                "stages: Wicke pre-pass {} steps, Cha & Ko {} steps, Wicke finish {} steps",
+                n[0], n[1], n[2]
+            );
+        }
         if clean {
             println!("output: free of intersections");
         } else {

@@ -1,5 +1,6 @@
-//! Tanglement-resolution methods built on the analysis: Cha & Ko 2022 ([`cha_ko`]) and Wicke et
-//! al. 2006 ([`wicke`]).
+//! Tanglement-resolution methods built on the analysis: Cha & Ko 2022 ([`cha_ko`]), Wicke et
+//! al. 2006 ([`wicke`]), and the two in stages ([`combined`], ours).
 
 pub mod cha_ko;
+pub mod combined;
 pub mod wicke;

@@ -17,7 +17,10 @@
 //!   the distortion of the parameterisation; only its direction is used).
 //! - Free parts (Sec. 5.2, last paragraph): collision handling is off between inside
 //!   vertices and the corners of intersecting triangles ("a small region around the
-//!   intersection lines"); every other pair keeps the ordinary thickness.
+//!   intersection lines"), whatever tanglement they belong to; every other pair keeps the
+//!   ordinary thickness. (Read per tanglement instead, free parts of different tanglements
+//!   kept apart, the exploded handkerchief made no progress at all: in a crumpled ball the
+//!   tanglements interleave and must pass through each other. BENCHMARKS.md, "Wicke".)
 //!
 //! Forces are expressed as accelerations (`k` in 1/s², `a_max` in m/s²), so the settings do
 //! not depend on the cloth's density.
@@ -148,24 +151,25 @@ pub fn triangle_gradient(x: [Vec3; 3], h: [f64; 3]) -> Vec3 {
     })
 }
 
-/// The context the forces need that does not change between steps.
-pub struct ForceContext<'a> {
+/// The context the forces need that does not change between steps (owns copies of the garment
+/// and its analysis mesh, so that a loop can keep it beside them).
+pub struct ForceContext {
     /// The garment (uv layer, panels, topology).
-    pub garment: &'a Garment,
+    pub garment: Garment,
     /// Its analysis mesh (one object).
-    pub mesh: &'a AnalysisMesh,
+    pub mesh: AnalysisMesh,
     /// uv point location.
     pub locator: UvLocator,
     /// Distance to the boundary per vertex ([`boundary_distance`]).
     pub boundary: Vec<f64>,
 }
 
-impl<'a> ForceContext<'a> {
+impl ForceContext {
     /// The context of `garment` analysed as `mesh`.
-    pub fn new(garment: &'a Garment, mesh: &'a AnalysisMesh) -> Self {
+    pub fn new(garment: &Garment, mesh: &AnalysisMesh) -> Self {
         ForceContext {
-            garment,
-            mesh,
+            garment: garment.clone(),
+            mesh: mesh.clone(),
             locator: UvLocator::new(garment),
             boundary: boundary_distance(garment),
         }
@@ -185,7 +189,7 @@ impl<'a> ForceContext<'a> {
         mass: &[f64],
         p: &ForceParams,
     ) -> (Vec<Vec3>, Vec<bool>, ForceReport) {
-        let g = self.garment;
+        let g = &self.garment;
         let uv = g.mesh.uv.as_ref().expect("a garment always has uv");
         let n = pos.len();
         let mut acc = vec![Vec3::zeros(); n];
@@ -203,6 +207,8 @@ impl<'a> ForceContext<'a> {
                 acc[v as usize] += f / m;
             }
         };
+        // The small region around the intersection lines: the corners of the intersecting
+        // triangles.
         for c in a.intersecting_triangles() {
             for v in tri(c) {
                 free[v as usize] = true;
@@ -214,7 +220,7 @@ impl<'a> ForceContext<'a> {
                 rep.unhandled_paths += 1;
                 continue;
             }
-            let samples = path_samples(self.mesh, pos, a, path);
+            let samples = path_samples(&self.mesh, pos, a, path);
             if samples.is_empty() {
                 rep.unhandled_paths += 1;
                 continue;

@@ -17,7 +17,7 @@
 //!
 //! Modules: [`rbf`] (the thin-plate fit, Eq. 2-3), [`correspondence`] (samples along paths,
 //! per-panel maps, uv point location), [`forces`] (Eq. 4, Eq. 5-7, the free parts),
-//! [`resolve`] (the loop with the simulator).
+//! [`resolve`] (the loop with the simulator and its collision policy).
 
 pub mod correspondence;
 pub mod forces;

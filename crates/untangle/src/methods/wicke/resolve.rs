@@ -106,10 +106,9 @@ pub struct WickeStep {
 }
 
 /// The loop over one garment.
-pub struct WickeResolver<'g> {
+pub struct WickeResolver {
     sim: Simulator,
-    am: &'g AnalysisMesh,
-    ctx: ForceContext<'g>,
+    ctx: ForceContext,
     params: WickeParams,
     history: Vec<WickeStep>,
     clean: bool,
@@ -117,19 +116,14 @@ pub struct WickeResolver<'g> {
     since_best: usize,
 }
 
-impl<'g> WickeResolver<'g> {
+impl WickeResolver {
     /// A loop for `garment` (analysed as `am`, from [`AnalysisMesh::single`]) starting at its
     /// current positions, at rest.
-    pub fn new(
-        garment: &'g Garment,
-        am: &'g AnalysisMesh,
-        params: WickeParams,
-    ) -> Result<WickeResolver<'g>> {
+    pub fn new(garment: &Garment, am: &AnalysisMesh, params: WickeParams) -> Result<WickeResolver> {
         params.validate()?;
         let sim = Simulator::new(garment, params.sim.clone())?;
         Ok(WickeResolver {
             sim,
-            am,
             ctx: ForceContext::new(garment, am),
             params,
             history: Vec::new(),
@@ -165,7 +159,7 @@ impl<'g> WickeResolver<'g> {
     pub fn step(&mut self) -> Result<(WickeStep, Option<StepReport>)> {
         let t0 = Instant::now();
         let pos = self.sim.positions().to_vec();
-        let a = analyze(self.am, &pos).map_err(|e| {
+        let a = analyze(&self.ctx.mesh, &pos).map_err(|e| {
             crate::error::Error::Parameter(format!("intersection analysis failed: {e:?}"))
         })?;
         let t1 = Instant::now();
@@ -243,7 +237,7 @@ impl<'g> WickeResolver<'g> {
 /// The collision policy of a step: free vertices, the edges and triangles with a free vertex,
 /// pass through each other (as Cha & Ko's red-red pairs); every other pair keeps `thickness`.
 pub fn free_policy(ctx: &ForceContext, free: &[bool], thickness: f64) -> RedGreen {
-    let g = ctx.garment;
+    let g = &ctx.garment;
     RedGreen {
         red_vertex: free.to_vec(),
         red_edge: g

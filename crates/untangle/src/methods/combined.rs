@@ -1,0 +1,364 @@
+//! Wicke's forces, then Cha & Ko's loop (ours): a staged untangler that combines what each
+//! method does best, measured in BENCHMARKS.md ("Combined method").
+//!
+//! 1. **Pre-pass** ([`super::wicke`], Wicke et al. 2006 Sec. 5): RBF correspondences and
+//!    penalty forces pull every inside region toward its partner at once. On the exploded
+//!    handkerchief this removes ~90 % of the intersecting pairs in 2-6 steps, but then it
+//!    oscillates and never finishes (the weakness Cha & Ko 2022 describe). So the pre-pass stops
+//!    as soon as the pair count misses a new low for `prepass_patience` steps, and the next
+//!    stage starts from the pre-pass's best state (fewest intersecting pairs).
+//! 2. **Cha & Ko** ([`super::cha_ko`], with its defaults): uv-space pulls and shrinks with
+//!    m-CCH peel what is left, out-to-in, with the paper's convergence argument; it ends with
+//!    the rest shape restored.
+//! 3. **Finish** (Wicke again): if Cha & Ko stops with tanglements left (stuck or out of
+//!    steps), Wicke's loop runs from there for at most `finish_steps` steps: the leftovers that
+//!    stall Cha & Ko (a BLI path, an LL path whose pulls saturate) are often what penalty
+//!    forces resolve in a few steps.
+//!
+//! Each stage runs its own simulator, built from the garment at the previous stage's positions
+//! (velocities start at zero); pinned vertices and obstacles are given to every stage. All
+//! stages share one step budget, `max_steps`.
+
+use super::cha_ko::{LoopStep, Outcome, ResolveParams, Resolver};
+use super::wicke::{WickeParams, WickeResolver, WickeStep};
+use crate::analysis::AnalysisMesh;
+use crate::error::Result;
+use crate::geom::Vec3;
+use crate::mesh::Garment;
+use crate::sim::{Obstacle, Simulator};
+
+/// Settings of the combined loop.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CombinedParams {
+    /// Wicke's loop (pre-pass and finish; their step limits come from the stages' own).
+    pub wicke: WickeParams,
+    /// Cha & Ko's loop (its `max_steps` is replaced by what is left of `max_steps`).
+    pub cha_ko: ResolveParams,
+    /// The pre-pass stops once the intersecting-pair count has missed a new low this many
+    /// steps in a row (0: no pre-pass). 1 measured best on the exploded handkerchief.
+    pub prepass_patience: usize,
+    /// At most this many steps of the finishing stage (0: none).
+    pub finish_steps: usize,
+    /// Step budget of all stages together.
+    pub max_steps: usize,
+}
+
+impl Default for CombinedParams {
+    fn default() -> Self {
+        CombinedParams {
+            wicke: WickeParams::default(),
+            cha_ko: ResolveParams::default(),
+            prepass_patience: 1,
+            finish_steps: 200,
+            max_steps: 2000,
+        }
+    }
+}
+
+/// The stage a step belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage {
+    /// Wicke's forces first.
+    Prepass,
+    /// Cha & Ko's loop.
+    ChaKo,
+    /// Wicke's forces on what Cha & Ko left.
+    Finish,
+}
+
+/// One step of the combined loop.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CombinedStep {
+    /// A step of Wicke's loop (pre-pass or finish).
+    Wicke(Stage, WickeStep),
+    /// A step of Cha & Ko's loop.
+    ChaKo(Box<LoopStep>),
+}
+
+impl CombinedStep {
+    /// The stage of the step.
+    pub fn stage(&self) -> Stage {
+        match self {
+            CombinedStep::Wicke(s, _) => *s,
+            CombinedStep::ChaKo(_) => Stage::ChaKo,
+        }
+    }
+
+    /// Intersecting triangle pairs at the start of the step.
+    pub fn intersecting_pairs(&self) -> usize {
+        match self {
+            CombinedStep::Wicke(_, s) => s.intersecting_pairs,
+            CombinedStep::ChaKo(s) => s.intersecting_pairs,
+        }
+    }
+
+    /// Milliseconds of the step.
+    pub fn ms(&self) -> f64 {
+        match self {
+            CombinedStep::Wicke(_, s) => s.ms.iter().sum(),
+            CombinedStep::ChaKo(s) => s.ms_analysis + s.ms_uv + s.ms_rest + s.ms_sim,
+        }
+    }
+}
+
+/// How the combined loop ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CombinedOutcome {
+    /// Free of intersections by the analysis (and, after Cha & Ko, its rest shape restored).
+    Resolved,
+    /// Every stage ran and tanglements are left.
+    Unresolved,
+    /// The step budget ran out.
+    StepLimit,
+}
+
+enum Active {
+    Wicke(Stage, Box<WickeResolver>),
+    ChaKo(Box<Resolver>),
+    Done(CombinedOutcome),
+}
+
+/// The combined loop over one garment.
+pub struct CombinedResolver {
+    garment: Garment,
+    am: AnalysisMesh,
+    params: CombinedParams,
+    pinned: Vec<u32>,
+    obstacles: Vec<Obstacle>,
+    active: Active,
+    history: Vec<CombinedStep>,
+    /// The pre-pass's fewest pairs, the positions with them, and steps since.
+    best: (usize, Vec<Vec3>, usize),
+}
+
+impl CombinedResolver {
+    /// A combined loop for `garment` at its current positions; pin vertices and add
+    /// obstacles before the first step.
+    pub fn new(garment: &Garment, params: CombinedParams) -> Result<CombinedResolver> {
+        let (am, _) = AnalysisMesh::single(&garment.mesh)?;
+        let mut wp = params.wicke.clone();
+        wp.max_steps = params.max_steps;
+        wp.stuck_steps = usize::MAX;
+        let mut cp = params.cha_ko.clone();
+        cp.max_steps = params.max_steps;
+        // Validate both loops' settings now, not at the switch.
+        wp.validate()?;
+        let active = if params.prepass_patience > 0 {
+            Active::Wicke(
+                Stage::Prepass,
+                Box::new(WickeResolver::new(garment, &am, wp)?),
+            )
+        } else {
+            Active::ChaKo(Box::new(Resolver::new(garment, cp)?))
+        };
+        Ok(CombinedResolver {
+            garment: garment.clone(),
+            am,
+            params,
+            pinned: Vec::new(),
+            obstacles: Vec::new(),
+            active,
+            history: Vec::new(),
+            best: (usize::MAX, garment.mesh.positions.clone(), 0),
+        })
+    }
+
+    /// Pins vertex `v` in every stage.
+    pub fn pin(&mut self, v: u32) -> Result<()> {
+        self.simulator_mut()
+            .map_or(Ok(()), |s| s.set_pinned(v, true))?;
+        self.pinned.push(v);
+        Ok(())
+    }
+
+    /// Adds a static obstacle to every stage.
+    pub fn add_obstacle(&mut self, o: Obstacle) -> Result<()> {
+        if let Some(s) = self.simulator_mut() {
+            s.add_obstacle(o.clone())?;
+        }
+        self.obstacles.push(o);
+        Ok(())
+    }
+
+    /// The active stage's simulator (`None` once done).
+    pub fn simulator(&self) -> Option<&Simulator> {
+        match &self.active {
+            Active::Wicke(_, w) => Some(w.simulator()),
+            Active::ChaKo(c) => Some(c.simulator()),
+            Active::Done(_) => None,
+        }
+    }
+
+    fn simulator_mut(&mut self) -> Option<&mut Simulator> {
+        match &mut self.active {
+            Active::Wicke(_, w) => Some(w.simulator_mut()),
+            Active::ChaKo(c) => Some(c.simulator_mut()),
+            Active::Done(_) => None,
+        }
+    }
+
+    /// The cloth's current positions.
+    pub fn positions(&self) -> &[Vec3] {
+        match &self.active {
+            Active::Wicke(_, w) => w.simulator().positions(),
+            Active::ChaKo(c) => c.simulator().positions(),
+            Active::Done(_) => &self.best.1,
+        }
+    }
+
+    /// Every step so far.
+    pub fn history(&self) -> &[CombinedStep] {
+        &self.history
+    }
+
+    /// Steps per stage: pre-pass, Cha & Ko, finish.
+    pub fn stage_steps(&self) -> [usize; 3] {
+        let mut n = [0; 3];
+        for s in &self.history {
+            n[s.stage() as usize] += 1;
+        }
+        n
+    }
+
+    /// The outcome once the loop has stopped.
+    pub fn stop_reason(&self) -> Option<CombinedOutcome> {
+        match self.active {
+            Active::Done(o) => Some(o),
+            _ => None,
+        }
+    }
+
+    /// Steps left in the budget.
+    fn budget(&self) -> usize {
+        self.params.max_steps.saturating_sub(self.history.len())
+    }
+
+    /// Builds a stage at `positions` with the pins and obstacles.
+    fn garment_at(&self, positions: &[Vec3]) -> Result<Garment> {
+        let mut m = self.garment.mesh.clone();
+        m.positions = positions.to_vec();
+        Garment::new(m)
+    }
+
+    fn configure(&self, s: &mut Simulator) -> Result<()> {
+        for &v in &self.pinned {
+            s.set_pinned(v, true)?;
+        }
+        for o in &self.obstacles {
+            s.add_obstacle(o.clone())?;
+        }
+        Ok(())
+    }
+
+    fn start_cha_ko(&mut self, positions: &[Vec3]) -> Result<()> {
+        let g = self.garment_at(positions)?;
+        let mut cp = self.params.cha_ko.clone();
+        cp.max_steps = self.budget();
+        let mut r = Resolver::new(&g, cp)?;
+        self.configure(r.simulator_mut())?;
+        self.active = Active::ChaKo(Box::new(r));
+        Ok(())
+    }
+
+    fn start_finish(&mut self, positions: Vec<Vec3>) -> Result<()> {
+        let steps = self.params.finish_steps.min(self.budget());
+        if steps == 0 {
+            self.best.1 = positions;
+            self.active = Active::Done(if self.budget() == 0 {
+                CombinedOutcome::StepLimit
+            } else {
+                CombinedOutcome::Unresolved
+            });
+            return Ok(());
+        }
+        let g = self.garment_at(&positions)?;
+        let mut wp = self.params.wicke.clone();
+        wp.max_steps = steps + 1;
+        let mut r = WickeResolver::new(&g, &self.am, wp)?;
+        self.configure(r.simulator_mut())?;
+        self.active = Active::Wicke(Stage::Finish, Box::new(r));
+        Ok(())
+    }
+
+    /// One step of the active stage, switching stages where the module text says. Returns
+    /// `None` once the loop has stopped.
+    pub fn step(&mut self) -> Result<Option<CombinedStep>> {
+        loop {
+            match &mut self.active {
+                Active::Done(_) => return Ok(None),
+                Active::Wicke(stage, w) => {
+                    let stage = *stage;
+                    if let Some(o) = w.stop_reason() {
+                        let pos = w.simulator().positions().to_vec();
+                        match (stage, o) {
+                            (_, super::wicke::WickeOutcome::Resolved) => {
+                                self.best.1 = pos;
+                                self.active = Active::Done(CombinedOutcome::Resolved);
+                            }
+                            (Stage::Prepass, _) => {
+                                let best = std::mem::take(&mut self.best.1);
+                                self.start_cha_ko(&best)?;
+                            }
+                            _ => {
+                                self.best.1 = pos;
+                                self.active = Active::Done(if self.budget() == 0 {
+                                    CombinedOutcome::StepLimit
+                                } else {
+                                    CombinedOutcome::Unresolved
+                                });
+                            }
+                        }
+                        continue;
+                    }
+                    if stage == Stage::Prepass && self.best.2 >= self.params.prepass_patience {
+                        let best = std::mem::take(&mut self.best.1);
+                        self.start_cha_ko(&best)?;
+                        continue;
+                    }
+                    let pos = w.simulator().positions().to_vec();
+                    let (s, stepped) = w.step()?;
+                    if stage == Stage::Prepass {
+                        if s.intersecting_pairs < self.best.0 {
+                            self.best = (s.intersecting_pairs, pos, 0);
+                        } else {
+                            self.best.2 += 1;
+                        }
+                    }
+                    if stepped.is_none() {
+                        // It only analysed and found the cloth clean: not a step.
+                        continue;
+                    }
+                    let rec = CombinedStep::Wicke(stage, s);
+                    self.history.push(rec.clone());
+                    return Ok(Some(rec));
+                }
+                Active::ChaKo(c) => {
+                    if let Some(o) = c.stop_reason() {
+                        let pos = c.simulator().positions().to_vec();
+                        if o == Outcome::Resolved {
+                            self.best.1 = pos;
+                            self.active = Active::Done(CombinedOutcome::Resolved);
+                        } else {
+                            self.start_finish(pos)?;
+                        }
+                        continue;
+                    }
+                    let (s, _) = c.step()?;
+                    let rec = CombinedStep::ChaKo(Box::new(s));
+                    self.history.push(rec.clone());
+                    return Ok(Some(rec));
+                }
+            }
+        }
+    }
+
+    /// Steps until the loop stops; `on_step` sees every step.
+    pub fn run(&mut self, mut on_step: impl FnMut(&CombinedStep)) -> Result<CombinedOutcome> {
+        while let Some(s) = self.step()? {
+            on_step(&s);
+        }
+        Ok(self.stop_reason().unwrap_or(CombinedOutcome::Unresolved))
+    }
+}
