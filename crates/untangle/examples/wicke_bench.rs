@@ -41,6 +41,20 @@ fn run_wicke(g: &Garment, max_steps: usize) -> (String, usize, bool, f64, f64) {
         .map(|a| a.is_clean())
         .unwrap_or(false);
     let steps = r.history().len().saturating_sub(1);
+    if std::env::var("WICKE_MS").is_ok() {
+        let h: Vec<_> = r.history().iter().filter(|s| s.intersecting_pairs > 0).collect();
+        let n = h.len().max(1) as f64;
+        let m = |k: usize| h.iter().map(|s| s.ms[k]).sum::<f64>() / n;
+        eprintln!(
+            "wicke ms/step: analysis {:.2} forces {:.2} simulation {:.2} (first step: {:.2} / {:.2} / {:.2})",
+            m(0),
+            m(1),
+            m(2),
+            h.first().map_or(0.0, |s| s.ms[0]),
+            h.first().map_or(0.0, |s| s.ms[1]),
+            h.first().map_or(0.0, |s| s.ms[2])
+        );
+    }
     if std::env::var("WICKE_TRACE").is_ok() {
         for (i, s) in r.history().iter().enumerate() {
             eprintln!(
