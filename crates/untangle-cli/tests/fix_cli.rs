@@ -350,8 +350,8 @@ fn bad_input_is_one_line_exit_2_and_no_output() {
             "idx.obj:4",
         ),
         (
-            vec!["fix", "ex.obj", "-o", "o.obj", "--method", "wicke"],
-            "wicke",
+            vec!["fix", "ex.obj", "-o", "o.obj", "--method", "buffet"],
+            "buffet",
         ),
         (
             vec!["fix", "ex.obj", "-o", "ex.obj", "--method", "cha-ko"],

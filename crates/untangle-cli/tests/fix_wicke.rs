@@ -1,46 +1,46 @@
-//! `untangle fix --method wicke` end to end: a tangled scene in, an intersection-free OBJ and a
-//! JSON report out (exit 0); a tangle beyond the method ends with exit 1 and says what is left;
-//! bad settings give one error line and exit code 2.
+//! `untangle fix --method wicke` and `--method combined` end to end: a tangled scene in, an
+//! intersection-free OBJ and a JSON report out (exit 0); a tangle beyond the method ends with
+//! exit 1 and says what is left; bad settings give one error line and exit code 2.
 
-use std::process::Command;
+mod common;
 
-fn untangle() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_untangle"))
+use common::{json, stderr, stdout, untangle};
+use std::path::Path;
+
+/// Writes scene `args` as `dir/name.obj` and runs `fix --method METHOD` on it with `extra`
+/// arguments, output `fixed.obj` and report `rep.json` in `dir`.
+fn fix(dir: &Path, scene: &[&str], method: &str, extra: &[&str]) -> std::process::Output {
+    let mut a = vec!["scene"];
+    a.extend_from_slice(scene);
+    a.extend_from_slice(&["-o", "in.obj"]);
+    assert!(untangle(&a, dir).status.success());
+    let mut f = vec![
+        "fix",
+        "in.obj",
+        "-o",
+        "fixed.obj",
+        "--json",
+        "rep.json",
+        "--method",
+        method,
+    ];
+    f.extend_from_slice(extra);
+    untangle(&f, dir)
 }
 
 #[test]
-fn fixes_a_bbii_case_and_reports_every_step() {
+fn wicke_fixes_a_bbii_case_and_reports_every_step() {
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("bbii.obj");
-    let out = dir.path().join("fixed.obj");
-    let json = dir.path().join("rep.json");
-    assert!(untangle()
-        .args(["scene", "bbii", "-o"])
-        .arg(&input)
-        .status()
-        .unwrap()
-        .success());
-    let o = untangle()
-        .args(["fix", "--method", "wicke"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .arg("--json")
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
+    let o = fix(dir.path(), &["bbii"], "wicke", &[]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).starts_with("wicke: resolved after "),
         "{}",
-        String::from_utf8_lossy(&o.stderr)
+        stdout(&o)
     );
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.starts_with("wicke: resolved after "), "{stdout}");
-    let check = untangle().arg("check").arg(&out).output().unwrap();
+    let check = untangle(&["check", "fixed.obj"], dir.path());
     assert_eq!(check.status.code(), Some(0), "the output is clean");
-    let rep: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rep = json(&dir.path().join("rep.json"));
     assert_eq!(rep["method"], "wicke");
     assert_eq!(rep["outcome"], "Resolved");
     assert_eq!(rep["output_intersection_free"], true);
@@ -55,96 +55,64 @@ fn fixes_a_bbii_case_and_reports_every_step() {
 }
 
 #[test]
-fn exit_1_with_what_is_left_and_exit_2_on_bad_settings() {
+fn wicke_exit_1_with_what_is_left_and_exit_2_on_bad_settings() {
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("ex.obj");
-    assert!(untangle()
-        .args(["scene", "exploded", "--seed", "1", "-o"])
-        .arg(&input)
-        .status()
-        .unwrap()
-        .success());
-    let out = dir.path().join("out.obj");
-    let o = untangle()
-        .args(["fix", "--method", "wicke", "--max-steps", "5"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(1));
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        stdout.contains("step limit reached") && stdout.contains("tanglements left"),
-        "{stdout}"
+    let o = fix(
+        dir.path(),
+        &["exploded", "--seed", "1"],
+        "wicke",
+        &["--max-steps", "5"],
     );
-    assert!(out.exists(), "the partial result is written");
+    assert_eq!(o.status.code(), Some(1));
+    let out = stdout(&o);
+    assert!(
+        out.contains("step limit reached") && out.contains("tanglements left"),
+        "{out}"
+    );
+    assert!(
+        dir.path().join("fixed.obj").exists(),
+        "the partial result is written"
+    );
     for bad in [
         ["--wicke-stiffness", "-1"],
         ["--wicke-max-acceleration", "nan"],
     ] {
-        let x = dir.path().join("x.obj");
-        let o = untangle()
-            .args(["fix", "--method", "wicke"])
-            .arg(&input)
-            .arg("-o")
-            .arg(&x)
-            .args(bad)
-            .output()
-            .unwrap();
+        let mut f = vec!["fix", "in.obj", "-o", "x.obj", "--method", "wicke"];
+        f.extend_from_slice(&bad);
+        let o = untangle(&f, dir.path());
         assert_eq!(o.status.code(), Some(2), "{bad:?}");
-        let err = String::from_utf8_lossy(&o.stderr);
+        let err = stderr(&o);
         assert!(
             err.starts_with("error: ") && err.lines().count() == 1,
             "{err}"
         );
-        assert!(!x.exists());
+        assert!(!dir.path().join("x.obj").exists());
     }
 }
 
 #[test]
 fn combined_fixes_an_exploded_handkerchief_in_stages() {
     let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("ex.obj");
-    let out = dir.path().join("fixed.obj");
-    let json = dir.path().join("rep.json");
-    assert!(untangle()
-        .args(["scene", "exploded", "--seed", "4", "-o"])
-        .arg(&input)
-        .status()
-        .unwrap()
-        .success());
-    let o = untangle()
-        .args(["fix", "--method", "combined"])
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .arg("--json")
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
+    let o = fix(dir.path(), &["exploded", "--seed", "4"], "combined", &[]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("stages: Wicke pre-pass "),
         "{}",
-        String::from_utf8_lossy(&o.stderr)
+        stdout(&o)
     );
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("stages: Wicke pre-pass "), "{stdout}");
-    let check = untangle().arg("check").arg(&out).output().unwrap();
+    let check = untangle(&["check", "fixed.obj"], dir.path());
     assert_eq!(check.status.code(), Some(0), "the output is clean");
-    let rep: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rep = json(&dir.path().join("rep.json"));
     assert_eq!(rep["method"], "combined");
     let st = &rep["stage_steps"];
-    let n = st["prepass"].as_u64().unwrap()
-        + st["cha_ko"].as_u64().unwrap()
-        + st["finish"].as_u64().unwrap();
-    assert_eq!(n as usize, rep["steps"].as_array().unwrap().len());
-    assert_eq!(rep["steps"][0]["stage"], "prepass");
-    assert!(rep["steps"]
-        .as_array()
-        .unwrap()
+    let n: u64 = ["prepass", "cha_ko", "finish"]
+        .iter()
+        .map(|k| st[k].as_u64().unwrap())
+        .sum();
+    let steps = rep["steps"].as_array().unwrap();
+    assert_eq!(n as usize, steps.len());
+    assert_eq!(steps[0]["stage"], "prepass");
+    assert!(steps
         .iter()
         .any(|s| s["stage"] == "cha_ko" && s["red_vertices"].is_u64()));
 }

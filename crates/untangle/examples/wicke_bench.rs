@@ -42,7 +42,11 @@ fn run_wicke(g: &Garment, max_steps: usize) -> (String, usize, bool, f64, f64) {
         .unwrap_or(false);
     let steps = r.history().len().saturating_sub(1);
     if std::env::var("WICKE_MS").is_ok() {
-        let h: Vec<_> = r.history().iter().filter(|s| s.intersecting_pairs > 0).collect();
+        let h: Vec<_> = r
+            .history()
+            .iter()
+            .filter(|s| s.intersecting_pairs > 0)
+            .collect();
         let n = h.len().max(1) as f64;
         let m = |k: usize| h.iter().map(|s| s.ms[k]).sum::<f64>() / n;
         eprintln!(

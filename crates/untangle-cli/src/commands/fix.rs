@@ -374,27 +374,12 @@ pub fn untangle(
             &scene.colored_obj(&initial_analysis, "untangle fix: input"),
         )?;
     }
-    let body_pairs = |pos: &[Vec3], a: &Analysis| -> usize {
-        Report::new(&scene.am, pos, a)
-            .pairs_by_objects
-            .iter()
-            .filter(|g| g.relation == "cloth-obstacle")
-            .map(|g| g.pairs)
-            .sum()
-    };
-    let input_body_pairs = body_pairs(&initial_pos, &initial_analysis);
+    let input_body_pairs = body_pairs(&scene.am, &initial_pos, &initial_analysis);
     if input_body_pairs > 0 {
         ctx.say(format!("note: {}", body_note(input_body_pairs)));
     }
     let initial_red = initial_analysis.coloring.num_red_vertices() as u64;
-    let pb = ctx.progress(initial_red.max(1), "untangling");
-    pb.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{msg:30} [{bar:20}] {pos}/{len} red resolved {elapsed}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
+    let pb = progress_bar(ctx, initial_red, "red resolved");
     let body_span = setup.body.map_or(0, |b| {
         (b.frames.len().saturating_sub(1)) * setup.body_frame_steps
     });
@@ -471,6 +456,29 @@ pub fn untangle(
         input_body_pairs,
         report,
     })
+}
+
+/// Cloth-body intersecting triangle pairs of analysis `a` of `am` at `pos`.
+pub(crate) fn body_pairs(am: &AnalysisMesh, pos: &[Vec3], a: &Analysis) -> usize {
+    Report::new(am, pos, a)
+        .pairs_by_objects
+        .iter()
+        .filter(|g| g.relation == "cloth-obstacle")
+        .map(|g| g.pairs)
+        .sum()
+}
+
+/// The untangling progress bar: `done` of `len` things (`what`: "red resolved", ...).
+pub(crate) fn progress_bar(ctx: &Context, len: u64, what: &str) -> indicatif::ProgressBar {
+    let pb = ctx.progress(len.max(1), "untangling");
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(&format!(
+            "{{msg:34}} [{{bar:20}}] {{pos}}/{{len}} {what} {{elapsed}}"
+        ))
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    pb
 }
 
 /// Why a run whose input already penetrates the body cannot end clean, and what to do.

@@ -5,7 +5,7 @@
 //! inputs, outputs and exit codes (0: the output is free of intersections by the analysis, 1:
 //! the run stopped with tanglements left, 2: error).
 
-use super::fix::{body_note, write_frame, Args, Scene, Setup};
+use super::fix::{body_note, body_pairs, progress_bar, write_frame, Args, Scene, Setup};
 use crate::output::Context;
 use anyhow::{bail, Context as _, Result};
 use untangle::analysis::report::Report;
@@ -215,27 +215,12 @@ pub fn run(
             &scene.colored_obj(&initial, &format!("untangle fix --method {method}: input")),
         )?;
     }
-    let body_pairs = |am: &AnalysisMesh, pos: &[Vec3], a: &Analysis| -> usize {
-        Report::new(am, pos, a)
-            .pairs_by_objects
-            .iter()
-            .filter(|g| g.relation == "cloth-obstacle")
-            .map(|g| g.pairs)
-            .sum()
-    };
     let input_body_pairs = body_pairs(&scene.am, &initial_pos, &initial);
     if input_body_pairs > 0 {
         ctx.say(format!("note: {}", body_note(input_body_pairs)));
     }
     let initial_pairs = initial.segments.len() as u64;
-    let pb = ctx.progress(initial_pairs.max(1), "untangling");
-    pb.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{msg:34} [{bar:20}] {pos}/{len} pairs resolved {elapsed}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-        .progress_chars("=> "),
-    );
+    let pb = progress_bar(ctx, initial_pairs, "pairs resolved");
     let body_span = setup.body.map_or(0, |b| {
         (b.frames.len().saturating_sub(1)) * setup.body_frame_steps
     });

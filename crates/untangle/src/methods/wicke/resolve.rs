@@ -14,7 +14,7 @@ use crate::analysis::{analyze, AnalysisMesh};
 use crate::error::Result;
 use crate::geom::Vec3;
 use crate::mesh::Garment;
-use crate::sim::{RedGreen, SimParams, Simulator, StepReport, ZoneMotion};
+use crate::sim::{RedGreen, SimParams, Simulator, StepReport};
 use std::time::Instant;
 
 /// Settings of the loop.
@@ -37,15 +37,11 @@ impl Default for WickeParams {
         WickeParams {
             forces: ForceParams::default(),
             thickness: 1e-6,
+            // Cha & Ko's loop's simulator (contacts within reach, soft impact zones, no
+            // near-pair cap) at Cha & Ko's step, so the two methods are compared on one simulator.
             sim: SimParams {
                 dt: 0.02,
-                contacts_within_reach: true,
-                near_pair_fraction: 0.0,
-                zone_motion: ZoneMotion {
-                    spin: true,
-                    soft_levels: 4,
-                },
-                ..SimParams::default()
+                ..crate::methods::cha_ko::ResolveParams::default().sim
             },
             max_steps: 2000,
             stuck_steps: 100,
