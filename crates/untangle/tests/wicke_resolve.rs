@@ -332,6 +332,36 @@ mod combined {
         assert_eq!(a, b);
     }
 
+    /// A pre-pass that does not halve the pairs is discarded: Cha & Ko then starts from the
+    /// input, and its steps are exactly Cha & Ko's own loop's (oracle), after the pre-pass's.
+    #[test]
+    fn a_weak_prepass_is_discarded() {
+        let s = untangle::scenes::exploded::exploded(4, 14);
+        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let mut p = params(1);
+        p.prepass_keep_below = 0.0;
+        let mut r = CombinedResolver::new(&g, p).unwrap();
+        r.run(|_| {}).unwrap();
+        let mut cp = ResolveParams::default();
+        cp.sim.gravity = Vec3::zeros();
+        cp.max_steps = 600;
+        let mut plain = Resolver::new(&g, cp).unwrap();
+        plain.run(|_| {}).unwrap();
+        let a: Vec<usize> = r
+            .history()
+            .iter()
+            .filter(|s| s.stage() == Stage::ChaKo)
+            .map(|s| s.intersecting_pairs())
+            .collect();
+        let b: Vec<usize> = plain
+            .history()
+            .iter()
+            .map(|s| s.intersecting_pairs)
+            .collect();
+        assert!(r.stage_steps()[0] > 0);
+        assert_eq!(a, b);
+    }
+
     /// A case the pre-pass resolves alone never reaches Cha & Ko.
     #[test]
     fn closed_case_ends_in_the_prepass() {

@@ -6,7 +6,8 @@
 //!    handkerchief this removes ~90 % of the intersecting pairs in 2-6 steps, but then it
 //!    oscillates and never finishes (the weakness Cha & Ko 2022 describe). So the pre-pass stops
 //!    as soon as the pair count misses a new low for `prepass_patience` steps, and the next
-//!    stage starts from the pre-pass's best state (fewest intersecting pairs).
+//!    stage starts from the pre-pass's best state (fewest intersecting pairs) if that removed
+//!    at least half the input's pairs (`prepass_keep_below`), else from the input.
 //! 2. **Cha & Ko** ([`super::cha_ko`], with its defaults): uv-space pulls and shrinks with
 //!    m-CCH peel what is left, out-to-in, with the paper's convergence argument; it ends with
 //!    the rest shape restored.
@@ -37,6 +38,12 @@ pub struct CombinedParams {
     /// The pre-pass stops once the intersecting-pair count has missed a new low this many
     /// steps in a row (0: no pre-pass). 1 measured best on the exploded handkerchief.
     pub prepass_patience: usize,
+    /// The pre-pass's best state is handed to Cha & Ko only when it has at most this fraction
+    /// of the input's intersecting pairs; otherwise Cha & Ko starts from the input (the
+    /// pre-pass's steps still count). On dense knots the pre-pass leaves ~10 %; on the sagged
+    /// garments it barely helps, and Cha & Ko from a slightly better but shaken state took
+    /// longer (t-shirt: 60 steps against 44).
+    pub prepass_keep_below: f64,
     /// At most this many steps of the finishing stage (0: none).
     pub finish_steps: usize,
     /// Step budget of all stages together.
@@ -49,6 +56,7 @@ impl Default for CombinedParams {
             wicke: WickeParams::default(),
             cha_ko: ResolveParams::default(),
             prepass_patience: 1,
+            prepass_keep_below: 0.5,
             finish_steps: 200,
             max_steps: 2000,
         }
@@ -131,6 +139,8 @@ pub struct CombinedResolver {
     history: Vec<CombinedStep>,
     /// The pre-pass's fewest pairs, the positions with them, and steps since.
     best: (usize, Vec<Vec3>, usize),
+    /// Intersecting pairs of the input (seen at the pre-pass's first step).
+    input_pairs: Option<usize>,
 }
 
 impl CombinedResolver {
@@ -162,6 +172,7 @@ impl CombinedResolver {
             active,
             history: Vec::new(),
             best: (usize::MAX, garment.mesh.positions.clone(), 0),
+            input_pairs: None,
         })
     }
 
@@ -252,6 +263,20 @@ impl CombinedResolver {
         Ok(())
     }
 
+    /// Ends the pre-pass: Cha & Ko from its best state, or from the input when the best state
+    /// kept more than `prepass_keep_below` of the input's pairs.
+    fn end_prepass(&mut self) -> Result<()> {
+        let keep = self
+            .input_pairs
+            .is_some_and(|n| (self.best.0 as f64) <= self.params.prepass_keep_below * n as f64);
+        let from = if keep {
+            std::mem::take(&mut self.best.1)
+        } else {
+            self.garment.mesh.positions.clone()
+        };
+        self.start_cha_ko(&from)
+    }
+
     fn start_cha_ko(&mut self, positions: &[Vec3]) -> Result<()> {
         let g = self.garment_at(positions)?;
         let mut cp = self.params.cha_ko.clone();
@@ -297,10 +322,7 @@ impl CombinedResolver {
                                 self.best.1 = pos;
                                 self.active = Active::Done(CombinedOutcome::Resolved);
                             }
-                            (Stage::Prepass, _) => {
-                                let best = std::mem::take(&mut self.best.1);
-                                self.start_cha_ko(&best)?;
-                            }
+                            (Stage::Prepass, _) => self.end_prepass()?,
                             _ => {
                                 self.best.1 = pos;
                                 self.active = Active::Done(if self.budget() == 0 {
@@ -313,13 +335,13 @@ impl CombinedResolver {
                         continue;
                     }
                     if stage == Stage::Prepass && self.best.2 >= self.params.prepass_patience {
-                        let best = std::mem::take(&mut self.best.1);
-                        self.start_cha_ko(&best)?;
+                        self.end_prepass()?;
                         continue;
                     }
                     let pos = w.simulator().positions().to_vec();
                     let (s, stepped) = w.step()?;
                     if stage == Stage::Prepass {
+                        self.input_pairs.get_or_insert(s.intersecting_pairs);
                         if s.intersecting_pairs < self.best.0 {
                             self.best = (s.intersecting_pairs, pos, 0);
                         } else {
