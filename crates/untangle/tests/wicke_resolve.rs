@@ -297,7 +297,8 @@ mod combined {
         let n = r.stage_steps();
         assert!(n[0] >= 2 && n[1] > 0, "{n:?}");
         let h = r.history();
-        // Stages in order; the pre-pass stops at the first step that is not a new low.
+        // Stages in order (one round here); the pre-pass stops at the first step that is not a
+        // new low.
         assert!(h
             .windows(2)
             .all(|w| w[0].stage() as u8 <= w[1].stage() as u8));
@@ -360,6 +361,29 @@ mod combined {
             .collect();
         assert!(r.stage_steps()[0] > 0);
         assert_eq!(a, b);
+    }
+
+    /// Exploded seed 73: one round (Cha & Ko, then the finish) ends with tanglements left; the
+    /// second round (Cha & Ko again from the finish's state) resolves it.
+    #[test]
+    fn a_second_round_resolves_what_the_first_left() {
+        let s = untangle::scenes::exploded::exploded(73, 14);
+        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
+        let mut one = params(1);
+        one.rounds = 1;
+        let mut r1 = CombinedResolver::new(&g, one).unwrap();
+        assert_eq!(r1.run(|_| {}).unwrap(), CombinedOutcome::Unresolved);
+        assert!(!analyze(&am, r1.positions()).unwrap().is_clean());
+        let mut r2 = CombinedResolver::new(&g, params(1)).unwrap();
+        assert_eq!(r2.run(|_| {}).unwrap(), CombinedOutcome::Resolved);
+        assert!(analyze(&am, r2.positions()).unwrap().is_clean());
+        // The first round is the same run; Cha & Ko comes back after the finish.
+        let n1 = r1.history().len();
+        assert!(r1.history().iter().zip(&r2.history()[..n1]).all(
+            |(a, b)| a.stage() == b.stage() && a.intersecting_pairs() == b.intersecting_pairs()
+        ));
+        assert_eq!(r2.history()[n1].stage(), Stage::ChaKo);
     }
 
     /// A case the pre-pass resolves alone never reaches Cha & Ko.

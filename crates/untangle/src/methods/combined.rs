@@ -15,6 +15,9 @@
 //!    steps), Wicke's loop runs from there for at most `finish_steps` steps: the leftovers that
 //!    stall Cha & Ko (a BLI path, an LL path whose pulls saturate) are often what penalty
 //!    forces resolve in a few steps.
+//! 4. **Rounds**: if the finish also ends with tanglements left, Cha & Ko runs again from
+//!    there, then the finish again, up to `rounds` (2) rounds of stages 2-3 in all (exploded
+//!    seed 73: stuck after one round, resolved in the second).
 //!
 //! Each stage runs its own simulator, built from the garment at the previous stage's positions
 //! (velocities start at zero); pinned vertices and obstacles are given to every stage. All
@@ -48,6 +51,9 @@ pub struct CombinedParams {
     pub finish_steps: usize,
     /// Step budget of all stages together.
     pub max_steps: usize,
+    /// Cha & Ko + finish rounds: when the finishing stage ends with tanglements left, Cha &
+    /// Ko's loop runs again from there, then the finish again, up to this many rounds in all.
+    pub rounds: usize,
 }
 
 impl Default for CombinedParams {
@@ -59,6 +65,7 @@ impl Default for CombinedParams {
             prepass_keep_below: 0.5,
             finish_steps: 200,
             max_steps: 2000,
+            rounds: 2,
         }
     }
 }
@@ -141,6 +148,8 @@ pub struct CombinedResolver {
     best: (usize, Vec<Vec3>, usize),
     /// Intersecting pairs of the input (seen at the pre-pass's first step).
     input_pairs: Option<usize>,
+    /// Cha & Ko + finish rounds started.
+    rounds: usize,
 }
 
 impl CombinedResolver {
@@ -173,6 +182,7 @@ impl CombinedResolver {
             history: Vec::new(),
             best: (usize::MAX, garment.mesh.positions.clone(), 0),
             input_pairs: None,
+            rounds: 1,
         })
     }
 
@@ -323,6 +333,10 @@ impl CombinedResolver {
                                 self.active = Active::Done(CombinedOutcome::Resolved);
                             }
                             (Stage::Prepass, _) => self.end_prepass()?,
+                            _ if self.rounds < self.params.rounds && self.budget() > 0 => {
+                                self.rounds += 1;
+                                self.start_cha_ko(&pos)?;
+                            }
                             _ => {
                                 self.best.1 = pos;
                                 self.active = Active::Done(if self.budget() == 0 {
