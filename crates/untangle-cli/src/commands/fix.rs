@@ -365,24 +365,15 @@ pub fn untangle(
     let mut scene = Scene::new(&garment.mesh, setup.body)?;
     let initial_analysis = scene.analyse(resolver.simulator())?;
     let initial_pos = scene.pos.clone();
-    if let Some((dir, _)) = setup.frames {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create", dir.display()))?;
-        write_frame(
-            dir,
-            0,
-            &scene.colored_obj(&initial_analysis, "untangle fix: input"),
-        )?;
-    }
-    let input_body_pairs = body_pairs(&scene.am, &initial_pos, &initial_analysis);
-    if input_body_pairs > 0 {
-        ctx.say(format!("note: {}", body_note(input_body_pairs)));
-    }
     let initial_red = initial_analysis.coloring.num_red_vertices() as u64;
-    let pb = progress_bar(ctx, initial_red, "red resolved");
-    let body_span = setup.body.map_or(0, |b| {
-        (b.frames.len().saturating_sub(1)) * setup.body_frame_steps
-    });
+    let (input_body_pairs, pb, body_span) = begin(
+        ctx,
+        setup,
+        &scene,
+        &initial_analysis,
+        "untangle fix: input",
+        (initial_red, "red resolved"),
+    )?;
     let outcome = loop {
         if let Some(o) = resolver.stop_reason() {
             break o;
@@ -456,6 +447,32 @@ pub fn untangle(
         input_body_pairs,
         report,
     })
+}
+
+/// What every fix driver does before its first step: frame 0 (with `--frames`), the note when
+/// the input already penetrates the body, and the progress bar over `len` things (`what`).
+/// Returns the input's cloth-body pairs, the bar and the body animation's span in steps.
+pub(crate) fn begin(
+    ctx: &Context,
+    setup: &Setup,
+    scene: &Scene,
+    initial: &Analysis,
+    header: &str,
+    (len, what): (u64, &str),
+) -> Result<(usize, indicatif::ProgressBar, usize)> {
+    if let Some((dir, _)) = setup.frames {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+        write_frame(dir, 0, &scene.colored_obj(initial, header))?;
+    }
+    let input_body_pairs = body_pairs(&scene.am, &scene.pos, initial);
+    if input_body_pairs > 0 {
+        ctx.say(format!("note: {}", body_note(input_body_pairs)));
+    }
+    let body_span = setup.body.map_or(0, |b| {
+        (b.frames.len().saturating_sub(1)) * setup.body_frame_steps
+    });
+    Ok((input_body_pairs, progress_bar(ctx, len, what), body_span))
 }
 
 /// Cloth-body intersecting triangle pairs of analysis `a` of `am` at `pos`.

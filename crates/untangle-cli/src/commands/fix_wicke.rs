@@ -5,7 +5,7 @@
 //! inputs, outputs and exit codes (0: the output is free of intersections by the analysis, 1:
 //! the run stopped with tanglements left, 2: error).
 
-use super::fix::{body_note, body_pairs, progress_bar, write_frame, Args, Scene, Setup};
+use super::fix::{begin, write_frame, Args, Scene, Setup};
 use crate::output::Context;
 use anyhow::{bail, Context as _, Result};
 use untangle::analysis::report::Report;
@@ -205,25 +205,15 @@ pub fn run(
         }
     };
     let initial = analyse(&mut scene, &runner)?;
-    let initial_pos = scene.pos.clone();
-    if let Some((dir, _)) = setup.frames {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create", dir.display()))?;
-        write_frame(
-            dir,
-            0,
-            &scene.colored_obj(&initial, &format!("untangle fix --method {method}: input")),
-        )?;
-    }
-    let input_body_pairs = body_pairs(&scene.am, &initial_pos, &initial);
-    if input_body_pairs > 0 {
-        ctx.say(format!("note: {}", body_note(input_body_pairs)));
-    }
     let initial_pairs = initial.segments.len() as u64;
-    let pb = progress_bar(ctx, initial_pairs, "pairs resolved");
-    let body_span = setup.body.map_or(0, |b| {
-        (b.frames.len().saturating_sub(1)) * setup.body_frame_steps
-    });
+    let (input_body_pairs, pb, body_span) = begin(
+        ctx,
+        setup,
+        &scene,
+        &initial,
+        &format!("untangle fix --method {method}: input"),
+        (initial_pairs, "pairs resolved"),
+    )?;
     let mut steps_json = Vec::new();
     loop {
         let k = steps_json.len();
