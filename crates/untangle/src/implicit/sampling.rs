@@ -228,30 +228,10 @@ pub fn boundary_samples(mesh: &Mesh, topo: &Topology, flips: &[bool], spacing: f
 /// edges (Dijkstra from the boundary vertices): value constraints that keep the whole garment
 /// inside its own influence region `h_i < 0`. Empty for a closed mesh.
 pub fn interior_values(mesh: &Mesh, topo: &Topology, count: usize) -> (Vec<Vec3>, Vec<f64>) {
-    use std::cmp::Reverse;
-    use std::collections::BinaryHeap;
     let nv = mesh.positions.len();
-    let mut dist = vec![f64::INFINITY; nv];
-    let mut heap = BinaryHeap::new();
-    for v in 0..nv {
-        if topo.boundary_vertex[v] {
-            dist[v] = 0.0;
-            heap.push(Reverse((0u64, v as u32)));
-        }
-    }
-    while let Some(Reverse((d, v))) = heap.pop() {
-        let d = f64::from_bits(d);
-        if d > dist[v as usize] {
-            continue;
-        }
-        for &u in topo.vertex_neighbors.row(v as usize) {
-            let nd = d + (mesh.positions[v as usize] - mesh.positions[u as usize]).norm();
-            if nd < dist[u as usize] {
-                dist[u as usize] = nd;
-                heap.push(Reverse((nd.to_bits(), u)));
-            }
-        }
-    }
+    let dist = topo.distances_to_boundary(|v, u| {
+        (mesh.positions[v as usize] - mesh.positions[u as usize]).norm()
+    });
     let interior: Vec<usize> = (0..nv)
         .filter(|&v| dist[v] > 0.0 && dist[v].is_finite())
         .collect();

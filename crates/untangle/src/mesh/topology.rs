@@ -217,6 +217,37 @@ impl Topology {
     pub fn num_edges(&self) -> usize {
         self.edges.len()
     }
+
+    /// Per vertex, the shortest distance along edges to a boundary vertex, an edge `(v, w)`
+    /// being `len(v, w)` long (multi-source Dijkstra; ties settle the lower vertex first, so
+    /// the sums are the same on every run). Infinite where no boundary is reachable (a closed
+    /// surface). Used for the HRBF interior constraints (world lengths) and Wicke's BI/BI
+    /// boundary field (rest lengths).
+    pub fn distances_to_boundary(&self, len: impl Fn(u32, u32) -> f64) -> Vec<f64> {
+        use std::cmp::Reverse;
+        use std::collections::BinaryHeap;
+        let mut dist = vec![f64::INFINITY; self.boundary_vertex.len()];
+        let mut heap = BinaryHeap::new();
+        for (v, _) in self.boundary_vertex.iter().enumerate().filter(|(_, &b)| b) {
+            dist[v] = 0.0;
+            heap.push(Reverse((0u64, v as u32)));
+        }
+        // Non-negative distances order as their bit patterns.
+        while let Some(Reverse((d, v))) = heap.pop() {
+            let d = f64::from_bits(d);
+            if d > dist[v as usize] {
+                continue;
+            }
+            for &u in self.vertex_neighbors.row(v as usize) {
+                let nd = d + len(v, u);
+                if nd < dist[u as usize] {
+                    dist[u as usize] = nd;
+                    heap.push(Reverse((nd.to_bits(), u)));
+                }
+            }
+        }
+        dist
+    }
 }
 
 /// Among the faces beside one edge (half-edges `3 t + k`, in increasing order), the first two

@@ -132,7 +132,18 @@ pub enum CombinedOutcome {
 enum Active {
     Wicke(Stage, Box<WickeResolver>),
     ChaKo(Box<Resolver>),
-    Done(CombinedOutcome),
+    /// Stopped, with the final positions.
+    Done(CombinedOutcome, Vec<Vec3>),
+}
+
+/// The pre-pass's best state so far.
+struct Best {
+    /// Fewest intersecting pairs seen at the start of a pre-pass step.
+    pairs: usize,
+    /// The positions with them.
+    positions: Vec<Vec3>,
+    /// Pre-pass steps since.
+    since: usize,
 }
 
 /// The combined loop over one garment.
@@ -144,8 +155,7 @@ pub struct CombinedResolver {
     obstacles: Vec<Obstacle>,
     active: Active,
     history: Vec<CombinedStep>,
-    /// The pre-pass's fewest pairs, the positions with them, and steps since.
-    best: (usize, Vec<Vec3>, usize),
+    best: Best,
     /// Intersecting pairs of the input (seen at the pre-pass's first step).
     input_pairs: Option<usize>,
     /// Cha & Ko + finish rounds started.
@@ -180,7 +190,11 @@ impl CombinedResolver {
             obstacles: Vec::new(),
             active,
             history: Vec::new(),
-            best: (usize::MAX, garment.mesh.positions.clone(), 0),
+            best: Best {
+                pairs: usize::MAX,
+                positions: Vec::new(),
+                since: 0,
+            },
             input_pairs: None,
             rounds: 1,
         })
@@ -208,7 +222,7 @@ impl CombinedResolver {
         match &self.active {
             Active::Wicke(_, w) => Some(w.simulator()),
             Active::ChaKo(c) => Some(c.simulator()),
-            Active::Done(_) => None,
+            Active::Done(..) => None,
         }
     }
 
@@ -216,7 +230,7 @@ impl CombinedResolver {
         match &mut self.active {
             Active::Wicke(_, w) => Some(w.simulator_mut()),
             Active::ChaKo(c) => Some(c.simulator_mut()),
-            Active::Done(_) => None,
+            Active::Done(..) => None,
         }
     }
 
@@ -225,7 +239,7 @@ impl CombinedResolver {
         match &self.active {
             Active::Wicke(_, w) => w.simulator().positions(),
             Active::ChaKo(c) => c.simulator().positions(),
-            Active::Done(_) => &self.best.1,
+            Active::Done(_, pos) => pos,
         }
     }
 
@@ -246,7 +260,7 @@ impl CombinedResolver {
     /// The outcome once the loop has stopped.
     pub fn stop_reason(&self) -> Option<CombinedOutcome> {
         match self.active {
-            Active::Done(o) => Some(o),
+            Active::Done(o, _) => Some(o),
             _ => None,
         }
     }
@@ -278,9 +292,9 @@ impl CombinedResolver {
     fn end_prepass(&mut self) -> Result<()> {
         let keep = self
             .input_pairs
-            .is_some_and(|n| (self.best.0 as f64) <= self.params.prepass_keep_below * n as f64);
+            .is_some_and(|n| (self.best.pairs as f64) <= self.params.prepass_keep_below * n as f64);
         let from = if keep {
-            std::mem::take(&mut self.best.1)
+            std::mem::take(&mut self.best.positions)
         } else {
             self.garment.mesh.positions.clone()
         };
@@ -300,12 +314,7 @@ impl CombinedResolver {
     fn start_finish(&mut self, positions: Vec<Vec3>) -> Result<()> {
         let steps = self.params.finish_steps.min(self.budget());
         if steps == 0 {
-            self.best.1 = positions;
-            self.active = Active::Done(if self.budget() == 0 {
-                CombinedOutcome::StepLimit
-            } else {
-                CombinedOutcome::Unresolved
-            });
+            self.stop_unresolved(positions);
             return Ok(());
         }
         let g = self.garment_at(&positions)?;
@@ -317,49 +326,57 @@ impl CombinedResolver {
         Ok(())
     }
 
+    /// Stops with tanglements left at `positions`: out of steps, or every stage tried.
+    fn stop_unresolved(&mut self, positions: Vec<Vec3>) {
+        let o = if self.budget() == 0 {
+            CombinedOutcome::StepLimit
+        } else {
+            CombinedOutcome::Unresolved
+        };
+        self.active = Active::Done(o, positions);
+    }
+
     /// One step of the active stage, switching stages where the module text says. Returns
     /// `None` once the loop has stopped.
     pub fn step(&mut self) -> Result<Option<CombinedStep>> {
         loop {
             match &mut self.active {
-                Active::Done(_) => return Ok(None),
+                Active::Done(..) => return Ok(None),
                 Active::Wicke(stage, w) => {
                     let stage = *stage;
                     if let Some(o) = w.stop_reason() {
                         let pos = w.simulator().positions().to_vec();
                         match (stage, o) {
                             (_, super::wicke::WickeOutcome::Resolved) => {
-                                self.best.1 = pos;
-                                self.active = Active::Done(CombinedOutcome::Resolved);
+                                self.active = Active::Done(CombinedOutcome::Resolved, pos);
                             }
                             (Stage::Prepass, _) => self.end_prepass()?,
                             _ if self.rounds < self.params.rounds && self.budget() > 0 => {
                                 self.rounds += 1;
                                 self.start_cha_ko(&pos)?;
                             }
-                            _ => {
-                                self.best.1 = pos;
-                                self.active = Active::Done(if self.budget() == 0 {
-                                    CombinedOutcome::StepLimit
-                                } else {
-                                    CombinedOutcome::Unresolved
-                                });
-                            }
+                            _ => self.stop_unresolved(pos),
                         }
                         continue;
                     }
-                    if stage == Stage::Prepass && self.best.2 >= self.params.prepass_patience {
+                    if stage == Stage::Prepass && self.best.since >= self.params.prepass_patience {
                         self.end_prepass()?;
                         continue;
                     }
-                    let pos = w.simulator().positions().to_vec();
+                    // The pre-pass remembers the state each step starts from.
+                    let before =
+                        (stage == Stage::Prepass).then(|| w.simulator().positions().to_vec());
                     let (s, stepped) = w.step()?;
-                    if stage == Stage::Prepass {
+                    if let Some(pos) = before {
                         self.input_pairs.get_or_insert(s.intersecting_pairs);
-                        if s.intersecting_pairs < self.best.0 {
-                            self.best = (s.intersecting_pairs, pos, 0);
+                        if s.intersecting_pairs < self.best.pairs {
+                            self.best = Best {
+                                pairs: s.intersecting_pairs,
+                                positions: pos,
+                                since: 0,
+                            };
                         } else {
-                            self.best.2 += 1;
+                            self.best.since += 1;
                         }
                     }
                     if stepped.is_none() {
@@ -374,8 +391,7 @@ impl CombinedResolver {
                     if let Some(o) = c.stop_reason() {
                         let pos = c.simulator().positions().to_vec();
                         if o == Outcome::Resolved {
-                            self.best.1 = pos;
-                            self.active = Active::Done(CombinedOutcome::Resolved);
+                            self.active = Active::Done(CombinedOutcome::Resolved, pos);
                         } else {
                             self.start_finish(pos)?;
                         }

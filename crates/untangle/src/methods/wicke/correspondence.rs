@@ -77,27 +77,20 @@ pub fn path_samples(mesh: &AnalysisMesh, pos: &[Vec3], a: &Analysis, path: &Path
             let seg = &a.segments[(piece / 2) as usize];
             let side = (piece & 1) as usize;
             let (t, u) = (seg.triangles[side], seg.triangles[1 - side]);
-            let mid = |t: u32| {
-                let b0 = end_barycentric(mesh, pos, a, seg.ends[0], t);
-                let b1 = end_barycentric(mesh, pos, a, seg.ends[1], t);
-                [
-                    0.5 * (b0[0] + b1[0]),
-                    0.5 * (b0[1] + b1[1]),
-                    0.5 * (b0[2] + b1[2]),
-                ]
-            };
-            let world = |t: u32, b: [f64; 3]| {
+            // Both ends in triangle `x`, read once each.
+            let ends = |x: u32| seg.ends.map(|e| end_barycentric(mesh, pos, a, e, x));
+            let mid = |[b0, b1]: [[f64; 3]; 2]| [0, 1, 2].map(|k| 0.5 * (b0[k] + b1[k]));
+            let world = |b: [f64; 3]| {
                 let tri = mesh.triangles[t as usize];
                 (0..3).fold(Vec3::zeros(), |s, k| s + pos[tri[k] as usize] * b[k])
             };
-            let e0 = world(t, end_barycentric(mesh, pos, a, seg.ends[0], t));
-            let e1 = world(t, end_barycentric(mesh, pos, a, seg.ends[1], t));
+            let here = ends(t);
             Sample {
                 here_triangle: t,
-                here: mid(t),
+                here: mid(here),
                 there_triangle: u,
-                there: mid(u),
-                length: (e1 - e0).norm(),
+                there: mid(ends(u)),
+                length: (world(here[1]) - world(here[0])).norm(),
             }
         })
         .collect()

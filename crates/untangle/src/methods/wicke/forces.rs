@@ -25,12 +25,10 @@
 //! Forces are expressed as accelerations (`k` in 1/s², `a_max` in m/s²), so the settings do
 //! not depend on the cloth's density.
 
-use super::correspondence::{panel_maps, path_samples, uv_point, UvLocator};
+use super::correspondence::{panel_maps, path_samples, uv_point, PanelMap, Sample, UvLocator};
 use crate::analysis::{Analysis, AnalysisMesh, PathKind, Region};
 use crate::geom::{Vec2, Vec3};
 use crate::mesh::Garment;
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
 
 /// An inside point: the vertices carrying it with their weights, its uv and its panel.
 type Source = (Vec<(u32, f64)>, Vec2, u32);
@@ -75,12 +73,12 @@ pub struct ForceReport {
     pub free_vertices: usize,
 }
 
-/// Per vertex, the distance to the cloth's boundary along edges of rest (uv) length: Dijkstra
-/// from every vertex of a boundary edge. Infinite everywhere for a closed surface.
+/// Per vertex, the distance to the cloth's boundary along edges of rest (uv) length
+/// ([`crate::mesh::Topology::distances_to_boundary`]). Infinite everywhere for a closed
+/// surface.
 pub fn boundary_distance(g: &Garment) -> Vec<f64> {
     let topo = &g.topology;
     let uv = g.mesh.uv.as_ref().expect("a garment always has uv");
-    let n = g.mesh.positions.len();
     // Rest length of each world edge: its uv length in the triangles holding it (the shorter).
     let mut len = vec![f64::INFINITY; topo.num_edges()];
     for (t, tri) in g.mesh.triangles.iter().enumerate() {
@@ -93,49 +91,10 @@ pub fn boundary_distance(g: &Garment) -> Vec<f64> {
             }
         }
     }
-    let mut dist = vec![f64::INFINITY; n];
-    let mut heap = BinaryHeap::new();
-    for e in 0..topo.num_edges() {
-        if topo.is_boundary_edge(e as u32) {
-            for &v in &topo.edges[e] {
-                if dist[v as usize] != 0.0 {
-                    dist[v as usize] = 0.0;
-                    heap.push(Item(0.0, v));
-                }
-            }
-        }
-    }
-    while let Some(Item(d, v)) = heap.pop() {
-        if d > dist[v as usize] {
-            continue;
-        }
-        for &w in topo.vertex_neighbors.row(v as usize) {
-            let Some(e) = topo.edge_between(v, w) else {
-                continue;
-            };
-            let nd = d + len[e as usize];
-            if nd < dist[w as usize] {
-                dist[w as usize] = nd;
-                heap.push(Item(nd, w));
-            }
-        }
-    }
-    dist
-}
-
-/// Min-heap entry (distance, vertex); ties by vertex for determinism.
-#[derive(PartialEq)]
-struct Item(f64, u32);
-impl Eq for Item {}
-impl PartialOrd for Item {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Item {
-    fn cmp(&self, o: &Self) -> Ordering {
-        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
-    }
+    topo.distances_to_boundary(|v, w| {
+        topo.edge_between(v, w)
+            .map_or(f64::INFINITY, |e| len[e as usize])
+    })
 }
 
 /// Gradient of the linear interpolant of `h` on the world triangle `x` (zero when degenerate).
@@ -189,64 +148,34 @@ impl ForceContext {
         mass: &[f64],
         p: &ForceParams,
     ) -> (Vec<Vec3>, Vec<bool>, ForceReport) {
-        let g = &self.garment;
-        let uv = g.mesh.uv.as_ref().expect("a garment always has uv");
         let n = pos.len();
         let mut acc = vec![Vec3::zeros(); n];
         let mut free = vec![false; n];
         let mut rep = ForceReport::default();
-        let tri = |t: u32| self.mesh.triangles[t as usize];
-        let world = |t: u32, b: &[f64; 3]| {
-            let c = tri(t);
-            (0..3).fold(Vec3::zeros(), |s, k| s + pos[c[k] as usize] * b[k])
-        };
-        // A force `f` (mass times acceleration) on vertex `v`.
-        let push = |acc: &mut Vec<Vec3>, v: u32, f: Vec3| {
-            let m = mass[v as usize];
-            if m > 0.0 {
-                acc[v as usize] += f / m;
-            }
-        };
         // The small region around the intersection lines: the corners of the intersecting
         // triangles.
         for c in a.intersecting_triangles() {
-            for v in tri(c) {
+            for v in self.mesh.triangles[c as usize] {
                 free[v as usize] = true;
             }
         }
         for (i, path) in a.paths.iter().enumerate() {
-            let j = path.corresponds_to as usize;
-            if j >= a.paths.len() {
+            let Some(partner) = a.paths.get(path.corresponds_to as usize) else {
                 rep.unhandled_paths += 1;
                 continue;
-            }
+            };
             let samples = path_samples(&self.mesh, pos, a, path);
             if samples.is_empty() {
                 rep.unhandled_paths += 1;
                 continue;
             }
-            if path.kind == PathKind::BoundaryInside && a.paths[j].kind == PathKind::BoundaryInside
-            {
-                // Sec. 5.3: the boundary field around P' (the samples' partner triangles).
-                let total: f64 = samples.iter().map(|s| s.length).sum();
-                let mut f_p = Vec3::zeros();
-                for s in &samples {
-                    let t = tri(s.there_triangle);
-                    let hs = [0, 1, 2].map(|k| self.boundary[t[k] as usize]);
-                    if hs.iter().any(|h| !h.is_finite()) {
-                        continue;
-                    }
-                    let xs = [0, 1, 2].map(|k| pos[t[k] as usize]);
-                    let grad = triangle_gradient(xs, hs);
-                    let gn = grad.norm();
-                    if gn == 0.0 || total <= 0.0 {
-                        continue;
-                    }
-                    let h = (0..3).map(|k| hs[k] * s.there[k]).sum::<f64>();
-                    f_p += Self::accel(p, -grad / gn, h) * (s.length / total);
-                }
-                let mut verts: Vec<u32> =
-                    samples.iter().flat_map(|s| tri(s.here_triangle)).collect();
+            if path.kind == PathKind::BoundaryInside && partner.kind == PathKind::BoundaryInside {
+                // Sec. 5.3 on every vertex of the triangles holding P's pieces.
+                let f_p = self.boundary_acceleration(&samples, pos, p);
+                let mut verts: Vec<u32> = samples
+                    .iter()
+                    .flat_map(|s| self.mesh.triangles[s.here_triangle as usize])
+                    .collect();
                 verts.sort_unstable();
                 verts.dedup();
                 for v in verts {
@@ -256,82 +185,32 @@ impl ForceContext {
                 continue;
             }
             // Sec. 5.2: inside points and their targets.
-            let inside: Vec<u32> = match &a.regions[i] {
-                Region::Inside(vs) => vs.clone(),
-                _ => Vec::new(),
+            let inside: &[u32] = match &a.regions[i] {
+                Region::Inside(vs) => vs,
+                _ => &[],
             };
             if inside.is_empty() && !path.closed {
                 rep.unhandled_paths += 1;
                 continue;
             }
-            let maps = panel_maps(g, &samples, p.max_centers);
+            let maps = panel_maps(&self.garment, &samples, p.max_centers);
             if maps.is_empty() {
                 rep.unhandled_paths += 1;
                 continue;
             }
-            let mut any = false;
-            let mut sources: Vec<Source> = Vec::new();
-            if inside.is_empty() {
-                // A region without vertices: the centroid of the samples on the first panel.
-                let m = &maps[0];
-                let on: Vec<_> = samples
-                    .iter()
-                    .filter(|s| g.panel_of_triangle[s.here_triangle as usize] == m.from)
-                    .collect();
-                let c = on.iter().fold(Vec2::zeros(), |s, x| {
-                    s + uv_point(g, x.here_triangle, &x.here)
-                }) / on.len().max(1) as f64;
-                if let Some((t, b)) = self.locator.locate(&c, m.from) {
-                    let corners = tri(t);
-                    sources.push(((0..3).map(|k| (corners[k], b[k])).collect(), c, m.from));
-                }
+            let sources = if inside.is_empty() {
+                self.centroid_source(&samples, &maps[0])
+                    .into_iter()
+                    .collect()
             } else {
-                for &v in &inside {
+                for &v in inside {
                     free[v as usize] = true;
-                    let copies = g.uv_copies.row(v as usize);
-                    let hit = copies.iter().find_map(|&c| {
-                        let panel = g.panel_of_uv[c as usize];
-                        maps.iter()
-                            .any(|m| m.from == panel)
-                            .then(|| (uv.coords[c as usize], panel))
-                    });
-                    if let Some((u, panel)) = hit {
-                        sources.push((vec![(v, 1.0)], u, panel));
-                    }
                 }
-            }
-            for (corners, u, panel) in sources {
-                let Some(m) = maps.iter().find(|m| m.from == panel) else {
-                    continue;
-                };
-                let target_uv = m.map.eval(&u);
-                let Some((t, b)) = self.locator.locate(&target_uv, m.to) else {
-                    continue;
-                };
-                let here = corners
-                    .iter()
-                    .fold(Vec3::zeros(), |s, &(v, w)| s + pos[v as usize] * w);
-                let there = world(t, &b);
-                let d = there - here;
-                let dn = d.norm();
-                if dn == 0.0 || !dn.is_finite() {
-                    continue;
-                }
-                let m_src: f64 = corners.iter().map(|&(v, w)| mass[v as usize] * w).sum();
-                let f = Self::accel(p, d / dn, dn) * m_src;
-                for &(v, w) in &corners {
-                    push(&mut acc, v, f * w);
-                }
-                if p.symmetric {
-                    let c = tri(t);
-                    for k in 0..3 {
-                        push(&mut acc, c[k], -f * b[k]);
-                    }
-                }
-                rep.inside_points += 1;
-                any = true;
-            }
-            if any {
+                self.vertex_sources(inside, &maps)
+            };
+            let pulled = self.pull_to_targets(&sources, &maps, pos, mass, p, &mut acc);
+            rep.inside_points += pulled;
+            if pulled > 0 {
                 rep.mapped_paths += 1;
             } else {
                 rep.unhandled_paths += 1;
@@ -339,6 +218,113 @@ impl ForceContext {
         }
         rep.free_vertices = free.iter().filter(|&&f| f).count();
         (acc, free, rep)
+    }
+
+    /// Eq. 7: the boundary field `F_out` (Eq. 6) on the surface around `P'` (the samples'
+    /// partner triangles), averaged over the samples by segment length.
+    fn boundary_acceleration(&self, samples: &[Sample], pos: &[Vec3], p: &ForceParams) -> Vec3 {
+        let total: f64 = samples.iter().map(|s| s.length).sum();
+        let mut f_p = Vec3::zeros();
+        for s in samples {
+            let t = self.mesh.triangles[s.there_triangle as usize];
+            let hs = [0, 1, 2].map(|k| self.boundary[t[k] as usize]);
+            if hs.iter().any(|h| !h.is_finite()) {
+                continue;
+            }
+            let xs = [0, 1, 2].map(|k| pos[t[k] as usize]);
+            let grad = triangle_gradient(xs, hs);
+            let gn = grad.norm();
+            if gn == 0.0 || total <= 0.0 {
+                continue;
+            }
+            let h = (0..3).map(|k| hs[k] * s.there[k]).sum::<f64>();
+            f_p += Self::accel(p, -grad / gn, h) * (s.length / total);
+        }
+        f_p
+    }
+
+    /// A region without vertices: one inside point, the centroid of the samples on the
+    /// panel of `map`, carried by the corners of its triangle.
+    fn centroid_source(&self, samples: &[Sample], map: &PanelMap) -> Option<Source> {
+        let g = &self.garment;
+        let on: Vec<_> = samples
+            .iter()
+            .filter(|s| g.panel_of_triangle[s.here_triangle as usize] == map.from)
+            .collect();
+        let c = on.iter().fold(Vec2::zeros(), |s, x| {
+            s + uv_point(g, x.here_triangle, &x.here)
+        }) / on.len().max(1) as f64;
+        let (t, b) = self.locator.locate(&c, map.from)?;
+        let corners = self.mesh.triangles[t as usize];
+        Some(((0..3).map(|k| (corners[k], b[k])).collect(), c, map.from))
+    }
+
+    /// The inside vertices, each at the uv copy on the first of its panels that has a map.
+    fn vertex_sources(&self, inside: &[u32], maps: &[PanelMap]) -> Vec<Source> {
+        let g = &self.garment;
+        let uv = g.mesh.uv.as_ref().expect("a garment always has uv");
+        inside
+            .iter()
+            .filter_map(|&v| {
+                g.uv_copies.row(v as usize).iter().find_map(|&c| {
+                    let panel = g.panel_of_uv[c as usize];
+                    maps.iter()
+                        .any(|m| m.from == panel)
+                        .then(|| (vec![(v, 1.0)], uv.coords[c as usize], panel))
+                })
+            })
+            .collect()
+    }
+
+    /// Eq. 4 for each source: pulled toward `s(d_P(u))`, the reaction on the target's corners
+    /// when symmetric. Adds to `acc`; returns how many sources got a target.
+    fn pull_to_targets(
+        &self,
+        sources: &[Source],
+        maps: &[PanelMap],
+        pos: &[Vec3],
+        mass: &[f64],
+        p: &ForceParams,
+        acc: &mut [Vec3],
+    ) -> usize {
+        // A force `f` (mass times acceleration) on vertex `v`.
+        let mut push = |v: u32, f: Vec3| {
+            let m = mass[v as usize];
+            if m > 0.0 {
+                acc[v as usize] += f / m;
+            }
+        };
+        let mut pulled = 0;
+        for (corners, u, panel) in sources {
+            let Some(m) = maps.iter().find(|m| m.from == *panel) else {
+                continue;
+            };
+            let Some((t, b)) = self.locator.locate(&m.map.eval(u), m.to) else {
+                continue;
+            };
+            let tri = self.mesh.triangles[t as usize];
+            let here = corners
+                .iter()
+                .fold(Vec3::zeros(), |s, &(v, w)| s + pos[v as usize] * w);
+            let there = (0..3).fold(Vec3::zeros(), |s, k| s + pos[tri[k] as usize] * b[k]);
+            let d = there - here;
+            let dn = d.norm();
+            if dn == 0.0 || !dn.is_finite() {
+                continue;
+            }
+            let m_src: f64 = corners.iter().map(|&(v, w)| mass[v as usize] * w).sum();
+            let f = Self::accel(p, d / dn, dn) * m_src;
+            for &(v, w) in corners {
+                push(v, f * w);
+            }
+            if p.symmetric {
+                for k in 0..3 {
+                    push(tri[k], -f * b[k]);
+                }
+            }
+            pulled += 1;
+        }
+        pulled
     }
 }
 

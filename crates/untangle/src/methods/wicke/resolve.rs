@@ -153,6 +153,12 @@ impl WickeResolver {
     /// pass's record and, when it stepped, the simulator's report. An analysis that finds an
     /// inconsistency is an error.
     pub fn step(&mut self) -> Result<(WickeStep, Option<StepReport>)> {
+        crate::pool::in_pool(|| self.step_in_pool())
+    }
+
+    /// [`WickeResolver::step`]'s body, run inside rayon's pool ([`crate::pool::in_pool`]: one
+    /// hand-over to a worker per step instead of one per parallel loop, as Cha & Ko's loop).
+    fn step_in_pool(&mut self) -> Result<(WickeStep, Option<StepReport>)> {
         let t0 = Instant::now();
         let pos = self.sim.positions().to_vec();
         let a = analyze(&self.ctx.mesh, &pos).map_err(|e| {
@@ -191,7 +197,7 @@ impl WickeResolver {
             .map(|(v, a)| v + a * h)
             .collect();
         self.sim.set_velocities(&v)?;
-        let policy = free_policy(&self.ctx, &free, self.params.thickness);
+        let policy = free_policy(&self.ctx, free, self.params.thickness);
         let t2 = Instant::now();
         let report = self.sim.step(&policy);
         let t3 = Instant::now();
@@ -232,10 +238,9 @@ impl WickeResolver {
 
 /// The collision policy of a step: free vertices, the edges and triangles with a free vertex,
 /// pass through each other (as Cha & Ko's red-red pairs); every other pair keeps `thickness`.
-pub fn free_policy(ctx: &ForceContext, free: &[bool], thickness: f64) -> RedGreen {
+pub fn free_policy(ctx: &ForceContext, free: Vec<bool>, thickness: f64) -> RedGreen {
     let g = &ctx.garment;
     RedGreen {
-        red_vertex: free.to_vec(),
         red_edge: g
             .topology
             .edges
@@ -248,6 +253,7 @@ pub fn free_policy(ctx: &ForceContext, free: &[bool], thickness: f64) -> RedGree
             .iter()
             .map(|t| t.iter().any(|&v| free[v as usize]))
             .collect(),
+        red_vertex: free,
         epsilon: thickness,
         epsilon_rg: thickness,
     }
