@@ -266,6 +266,31 @@ pub struct Setup<'a> {
     pub frames: Option<(&'a Path, usize)>,
 }
 
+/// Friction of the body in `fix` (as in `simulate`).
+const BODY_FRICTION: f64 = 0.3;
+
+impl Setup<'_> {
+    /// Refuses settings no driver can run with.
+    pub fn validate(&self) -> Result<()> {
+        if self.body_frame_steps == 0 {
+            bail!("--body-frame-steps must be at least 1");
+        }
+        Ok(())
+    }
+
+    /// The body as the simulator's obstacle, at its first frame.
+    pub fn obstacle(&self) -> Result<Option<untangle::sim::Obstacle>> {
+        Ok(match self.body {
+            Some(b) => Some(untangle::sim::Obstacle::from_mesh(
+                &b.mesh,
+                self.body_thickness,
+                BODY_FRICTION,
+            )?),
+            None => None,
+        })
+    }
+}
+
 /// The result of a run.
 pub struct FixRun {
     /// The loop's summary.
@@ -345,19 +370,11 @@ pub fn untangle(
     setup: &Setup,
     ctx: &Context,
 ) -> Result<FixRun> {
-    if setup.body_frame_steps == 0 {
-        bail!("--body-frame-steps must be at least 1");
-    }
+    setup.validate()?;
     let max_steps = params.max_steps;
     let mut resolver = Resolver::new(garment, params).context("cha-ko")?;
-    if let Some(b) = setup.body {
-        resolver
-            .simulator_mut()
-            .add_obstacle(untangle::sim::Obstacle::from_mesh(
-                &b.mesh,
-                setup.body_thickness,
-                0.3,
-            )?)?;
+    if let Some(o) = setup.obstacle()? {
+        resolver.simulator_mut().add_obstacle(o)?;
     }
     for &v in setup.pinned {
         resolver.simulator_mut().set_pinned(v, true)?;

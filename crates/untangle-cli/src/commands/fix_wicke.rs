@@ -68,7 +68,7 @@ impl Runner {
                     return Ok(None);
                 }
                 let (s, stepped) = w.step().context("wicke step")?;
-                Ok(stepped.map(|_| (s.intersecting_pairs, step_json(k, "prepass", &s))))
+                Ok(stepped.map(|_| (s.intersecting_pairs, step_json(k, "wicke", &s))))
             }
             Runner::Combined(c) => Ok(c.step().context("combined step")?.map(|s| {
                 let json = match &s {
@@ -153,9 +153,7 @@ pub fn run(
     setup: &Setup,
     ctx: &Context,
 ) -> Result<u8> {
-    if setup.body_frame_steps == 0 {
-        bail!("--body-frame-steps must be at least 1");
-    }
+    setup.validate()?;
     let combined = method == "combined";
     if combined && setup.body.is_some_and(|b| b.frames.len() > 1) {
         bail!(
@@ -166,14 +164,7 @@ pub fn run(
     let cp = combined_params(args);
     let max_steps = p.max_steps;
     let (am, _) = AnalysisMesh::single(&garment.mesh)?;
-    let obstacle = match setup.body {
-        Some(b) => Some(untangle::sim::Obstacle::from_mesh(
-            &b.mesh,
-            setup.body_thickness,
-            0.3,
-        )?),
-        None => None,
-    };
+    let obstacle = setup.obstacle()?;
     let mut runner = if combined {
         let mut c = CombinedResolver::new(garment, cp.clone()).context("combined")?;
         if let Some(o) = &obstacle {
