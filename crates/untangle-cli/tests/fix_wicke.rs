@@ -48,6 +48,7 @@ fn wicke_fixes_a_bbii_case_and_reports_every_step() {
     assert!(steps.len() >= 2);
     assert!(steps[0]["intersecting_pairs"].as_u64().unwrap() > 0);
     assert!(steps[0]["inside_points"].as_u64().unwrap() > 0);
+    assert!(steps.iter().all(|s| s["stage"] == "wicke"));
     // Each entry is a simulator step (pairs at its start); the clean state after the last one
     // is the output.
     assert_eq!(rep["steps_run"].as_u64().unwrap() as usize, steps.len());
