@@ -97,6 +97,18 @@ fn run_chako(g: &Garment, max_steps: usize) -> (String, usize, bool, f64, f64) {
     )
 }
 
+/// `COMBINED_KEEP` (`prepass_keep_below`; 1 hands the pre-pass's best state over always, as
+/// before that rule) and `COMBINED_ROUNDS` (`rounds`; 1 = one round, as before rounds).
+fn combined_knobs(p: &mut CombinedParams) {
+    let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
+    if let Some(v) = env("COMBINED_KEEP") {
+        p.prepass_keep_below = v;
+    }
+    if let Some(v) = env("COMBINED_ROUNDS") {
+        p.rounds = v as usize;
+    }
+}
+
 /// The combined loop (`methods::combined`: Wicke pre-pass, Cha & Ko, Wicke finish) with
 /// pre-pass patience `patience`: (steps per stage, outcome, clean by an independent analysis,
 /// wall).
@@ -109,6 +121,7 @@ fn run_combined(g: &Garment, max_steps: usize, patience: usize) -> ([usize; 3], 
     };
     p.wicke.sim.gravity = Vec3::zeros();
     p.cha_ko.sim.gravity = Vec3::zeros();
+    combined_knobs(&mut p);
     let t = Instant::now();
     let mut r = CombinedResolver::new(g, p).expect("loop");
     let o = r.run(|_| {}).expect("runs");
@@ -205,6 +218,7 @@ fn garments(sag: usize, max_steps: usize) {
         };
         p.wicke.sim.gravity = gravity;
         p.cha_ko.sim.gravity = gravity;
+        combined_knobs(&mut p);
         let mut c = CombinedResolver::new(&tg, p).expect("loop");
         for &v in &pins {
             c.pin(v).expect("pin");
@@ -242,31 +256,51 @@ fn main() {
                 .unwrap_or(d)
         };
         let (first, last, max_steps) = (num(1, 1), num(2, 10), num(3, 2000) as usize);
-        println!("| seed | pre-pass steps | Cha & Ko steps | finish steps | total | outcome | clean | wall s |");
-        println!("|---|---|---|---|---|---|---|---|");
-        let mut totals = Vec::new();
+        println!("| seed | pre-pass steps | Cha & Ko steps | finish steps | total | outcome | clean | wall s | Cha & Ko alone: steps | clean |");
+        println!("|---|---|---|---|---|---|---|---|---|---|");
+        let (mut totals, mut alone) = (Vec::new(), Vec::new());
+        let mut cmp = [0usize; 3]; // combined faster, slower, equal (both clean)
         for seed in first..=last {
             let s = untangle::scenes::exploded::exploded(seed, 14);
             let g = Garment::new(s.meshes[0].clone()).expect("garment");
             let (n, o, clean, wall) = run_combined(&g, max_steps, patience);
+            // Cha & Ko alone, as `cha_ko_exploded` runs it (400-step limit).
+            let (_, ck_steps, ck_clean, _, _) = run_chako(&g, 400);
             let total = n.iter().sum::<usize>();
             println!(
-                "| {seed} | {} | {} | {} | {total} | {o} | {clean} | {wall:.2} |",
+                "| {seed} | {} | {} | {} | {total} | {o} | {clean} | {wall:.2} | {ck_steps} | {ck_clean} |",
                 n[0], n[1], n[2]
             );
             if clean {
                 totals.push(total);
             }
+            if ck_clean {
+                alone.push(ck_steps);
+            }
+            if clean && ck_clean {
+                cmp[match total.cmp(&ck_steps) {
+                    std::cmp::Ordering::Less => 0,
+                    std::cmp::Ordering::Greater => 1,
+                    std::cmp::Ordering::Equal => 2,
+                }] += 1;
+            }
         }
-        totals.sort_unstable();
-        if !totals.is_empty() {
-            let m = totals.len();
-            let median = (totals[(m - 1) / 2] + totals[m / 2]) as f64 / 2.0;
-            println!(
-                "clean {m} / {}, median total steps (clean seeds) {median}",
-                last - first + 1
-            );
-        }
+        let median = |v: &mut Vec<usize>| {
+            v.sort_unstable();
+            let m = v.len();
+            (m > 0).then(|| (v[(m - 1) / 2] + v[m / 2]) as f64 / 2.0)
+        };
+        let seeds = last - first + 1;
+        println!(
+            "combined: clean {} / {seeds}, median total steps (clean seeds) {:?}; Cha & Ko alone: clean {} / {seeds}, median {:?}; seeds clean in both: combined faster on {}, slower on {}, equal on {}",
+            totals.len(),
+            median(&mut totals),
+            alone.len(),
+            median(&mut alone),
+            cmp[0],
+            cmp[1],
+            cmp[2]
+        );
         return;
     }
     let args: Vec<String> = std::env::args().collect();
