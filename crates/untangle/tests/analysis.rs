@@ -412,11 +412,7 @@ fn report_is_identical_for_one_and_two_threads() {
         let s = scenes::exploded::exploded(seed, n);
         let (am, pos) = AnalysisMesh::single(&s.meshes[0]).unwrap();
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            common::with_threads(threads, || {
                 let a = analyze(&am, &pos).unwrap();
                 let mut r = Report::new(&am, &pos, &a);
                 r.timing_ms = Default::default();
@@ -680,11 +676,8 @@ fn small_meshes_analysed_outside_the_pool_match_the_pool() {
         let here = analyze(&mesh, &pos).expect("consistent");
         assert!(!here.segments.is_empty());
         for threads in [1, 2] {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .expect("pool");
-            let inside = pool.install(|| analyze(&mesh, &pos).expect("consistent"));
+            let inside =
+                common::with_threads(threads, || analyze(&mesh, &pos).expect("consistent"));
             same(&here, &inside);
         }
     }

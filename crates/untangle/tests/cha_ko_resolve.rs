@@ -2,6 +2,8 @@
 //! end intersection-free (checked by an independent analysis of the final positions) with the
 //! uv back at its original values.
 
+mod common;
+
 use untangle::analysis::{analyze, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
@@ -426,11 +428,7 @@ fn the_adaptive_integrator_switches_by_its_rule_and_is_deterministic() {
         restart_stall: true,
     };
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        common::with_threads(threads, || {
             let mut p = params(16);
             p.adaptive = Some(rule);
             let mut r = Resolver::new(&g, p).unwrap();

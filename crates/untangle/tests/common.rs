@@ -5,6 +5,15 @@ use std::path::PathBuf;
 use untangle::analysis::{analyze, Analysis, AnalysisMesh, End, ObjectKind};
 use untangle::mesh::Mesh;
 
+/// `f` run in a rayon pool of `threads` workers (the 1-vs-2-thread determinism tests).
+pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("pool")
+        .install(f)
+}
+
 /// The shared data folder (`UNTANGLE_SHARED` or `../shared` beside the checkout), if present.
 pub fn shared() -> Option<PathBuf> {
     let p = std::env::var_os("UNTANGLE_SHARED")

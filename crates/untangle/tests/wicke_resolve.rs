@@ -1,6 +1,8 @@
 //! Wicke et al. 2006, Sec. 5 (`methods::wicke`): correspondences, boundary distances, forces and
 //! the whole loop, each against an independent check.
 
+mod common;
+
 use proptest::prelude::*;
 use untangle::analysis::{analyze, AnalysisMesh, Region};
 use untangle::geom::Vec3;
@@ -422,11 +424,7 @@ fn same_result_for_one_and_two_threads() {
     let s = untangle::scenes::exploded::exploded(3, 14);
     let g = Garment::new(s.meshes[0].clone()).unwrap();
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        common::with_threads(threads, || {
             let mut p = CombinedParams {
                 max_steps: 20,
                 ..Default::default()
