@@ -119,20 +119,33 @@ fn combined_fixes_an_exploded_handkerchief_in_stages() {
 }
 
 #[test]
-fn combined_refuses_an_animated_body_and_takes_a_static_one() {
+fn combined_follows_an_animated_body_and_takes_a_static_one() {
     let dir = tempfile::tempdir().unwrap();
     let quad =
         |z: f64| format!("v -2 -2 {z}\nv 2 -2 {z}\nv 2 2 {z}\nv -2 2 {z}\nf 1 2 3\nf 1 3 4\n");
     std::fs::create_dir(dir.path().join("body")).unwrap();
     std::fs::write(dir.path().join("body/a.obj"), quad(-1.0)).unwrap();
     std::fs::write(dir.path().join("body/b.obj"), quad(-1.1)).unwrap();
+    // An animated body far below: every stage follows it, and the report says so.
     let o = fix(dir.path(), &["closed"], "combined", &["--body", "body"]);
-    assert_eq!(o.status.code(), Some(2));
-    let err = stderr(&o);
-    assert!(
-        err.starts_with("error: ") && err.contains("static body") && err.lines().count() == 1,
-        "{err}"
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r = json(&dir.path().join("rep.json"));
+    assert_eq!(r["body"]["frames"], 2, "{r}");
+    assert!(r["steps"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|s| s["stage"].is_string()));
+    // A body file that is not there: one error line, exit 2, no output.
+    std::fs::remove_file(dir.path().join("fixed.obj")).unwrap();
+    let o = fix(
+        dir.path(),
+        &["closed"],
+        "combined",
+        &["--body", "nobody.obj"],
     );
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
     assert!(!dir.path().join("fixed.obj").exists());
     // A static body far below: the combined loop runs with it and resolves.
     let o = fix(

@@ -391,6 +391,60 @@ mod combined {
         assert_eq!(r2.history()[n1].stage(), Stage::ChaKo);
     }
 
+    /// A moving obstacle (a quad far below, sinking 1 cm per step): every stage's simulator has
+    /// it where the last step left it, and once it has moved Cha & Ko starts from the state the
+    /// pre-pass stopped in (its own first analysis sees that state's pairs), not from the best.
+    #[test]
+    fn a_moving_obstacle_follows_every_stage() {
+        let s = untangle::scenes::exploded::exploded(4, 14);
+        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
+        let quad = |k: usize| {
+            let z = -1.0 - 0.01 * k as f64;
+            vec![
+                Vec3::new(-2.0, -2.0, z),
+                Vec3::new(2.0, -2.0, z),
+                Vec3::new(2.0, 2.0, z),
+                Vec3::new(-2.0, 2.0, z),
+            ]
+        };
+        let o = untangle::sim::Obstacle {
+            name: "floor".into(),
+            positions: quad(0),
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            thickness: 1e-3,
+            friction: 0.0,
+        };
+        let mut r = CombinedResolver::new(&g, params(1)).unwrap();
+        r.add_obstacle(o).unwrap();
+        assert!(r.set_obstacle_next_positions(1, &quad(1)).is_err());
+        let mut after = Vec::new(); // (stage, positions after the step)
+        loop {
+            r.set_obstacle_next_positions(0, &quad(after.len() + 1))
+                .unwrap();
+            let Some(step) = r.step().unwrap() else { break };
+            let k = after.len() + 1;
+            if let Some(sim) = r.simulator() {
+                assert_eq!(sim.obstacles().start, quad(k), "step {k}");
+            }
+            after.push((
+                step.stage(),
+                step.intersecting_pairs(),
+                r.positions().to_vec(),
+            ));
+        }
+        assert_eq!(r.stop_reason(), Some(CombinedOutcome::Resolved));
+        assert!(analyze(&am, r.positions()).unwrap().is_clean());
+        let first_chako = after.iter().position(|a| a.0 == Stage::ChaKo).unwrap();
+        let last_pre = &after[first_chako - 1];
+        assert_eq!(last_pre.0, Stage::Prepass);
+        let stopped_pairs = analyze(&am, &last_pre.2).unwrap().segments.len();
+        assert_eq!(after[first_chako].1, stopped_pairs);
+        // The best pre-pass state (a step's start) had fewer pairs: reverting would differ.
+        let best = after[..first_chako].iter().map(|a| a.1).min().unwrap();
+        assert!(best < stopped_pairs, "{best} {stopped_pairs}");
+    }
+
     /// A case the pre-pass resolves alone never reaches Cha & Ko.
     #[test]
     fn closed_case_ends_in_the_prepass() {

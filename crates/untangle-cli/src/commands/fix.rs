@@ -30,7 +30,7 @@ pub enum Method {
     /// compare against; no convergence guarantee).
     Wicke,
     /// Ours: Wicke's forces until the pair count stops falling, Cha & Ko from the best state,
-    /// Wicke again on what Cha & Ko leaves (`methods::combined`; static bodies only).
+    /// Wicke again on what Cha & Ko leaves (`methods::combined`).
     Combined,
 }
 
@@ -435,11 +435,7 @@ pub fn untangle(
         "vertices": garment.mesh.positions.len(),
         "triangles": garment.mesh.triangles.len(),
         "pinned": setup.pinned.len(),
-        "body": setup.body.map(|b| serde_json::json!({
-            "vertices": b.mesh.positions.len(),
-            "triangles": b.mesh.triangles.len(),
-            "frames": b.frames.len(),
-        })),
+        "body": body_json(setup),
         "params": resolver.chako().params(),
         "eps_rg": resolver.chako().eps_rg(),
         "outcome": summary.outcome,
@@ -464,6 +460,15 @@ pub fn untangle(
         input_body_pairs,
         report,
     })
+}
+
+/// The body section of a fix report (null without `--body`).
+pub(crate) fn body_json(setup: &Setup) -> serde_json::Value {
+    serde_json::json!(setup.body.map(|b| serde_json::json!({
+        "vertices": b.mesh.positions.len(),
+        "triangles": b.mesh.triangles.len(),
+        "frames": b.frames.len(),
+    })))
 }
 
 /// What every fix driver does before its first step: frame 0 (with `--frames`), the note when

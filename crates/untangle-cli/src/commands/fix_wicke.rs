@@ -7,7 +7,7 @@
 
 use super::fix::{begin, write_frame, Args, Scene, Setup};
 use crate::output::Context;
-use anyhow::{bail, Context as _, Result};
+use anyhow::{Context as _, Result};
 use untangle::analysis::report::Report;
 use untangle::analysis::{Analysis, AnalysisMesh};
 use untangle::geom::Vec3;
@@ -155,11 +155,6 @@ pub fn run(
 ) -> Result<u8> {
     setup.validate()?;
     let combined = method == "combined";
-    if combined && setup.body.is_some_and(|b| b.frames.len() > 1) {
-        bail!(
-            "--method combined takes a static body only (one OBJ file, not a directory of frames)"
-        );
-    }
     let p = params(args);
     let cp = combined_params(args);
     let max_steps = p.max_steps;
@@ -208,10 +203,16 @@ pub fn run(
     let mut steps_json = Vec::new();
     loop {
         let k = steps_json.len();
-        if let (Some(b), Runner::Wicke(w)) = (setup.body, &mut runner) {
-            if b.frames.len() > 1 && w.stop_reason().is_none() {
-                let next = super::simulate::body_at(b, (k + 1).min(body_span), body_span);
-                w.simulator_mut().set_obstacle_next_positions(0, &next)?;
+        if let Some(b) = setup.body.filter(|b| b.frames.len() > 1) {
+            let next = super::simulate::body_at(b, (k + 1).min(body_span), body_span);
+            match &mut runner {
+                Runner::Wicke(w) if w.stop_reason().is_none() => {
+                    w.simulator_mut().set_obstacle_next_positions(0, &next)?
+                }
+                Runner::Combined(c) if c.stop_reason().is_none() => {
+                    c.set_obstacle_next_positions(0, &next)?
+                }
+                _ => {}
             }
         }
         let Some((pairs, json)) = runner.step(k)? else {
@@ -289,6 +290,7 @@ pub fn run(
             "vertices": garment.mesh.positions.len(),
             "triangles": garment.mesh.triangles.len(),
             "pinned": setup.pinned.len(),
+            "body": super::fix::body_json(setup),
             "params": params_json,
             "outcome": outcome,
             "steps_run": steps,

@@ -22,6 +22,11 @@
 //! Each stage runs its own simulator, built from the garment at the previous stage's positions
 //! (velocities start at zero); pinned vertices and obstacles are given to every stage. All
 //! stages share one step budget, `max_steps`.
+//!
+//! Obstacles may move ([`CombinedResolver::set_obstacle_next_positions`], e.g. an animated
+//! body): a new stage gets each obstacle where the last step left it. Once an obstacle has
+//! moved, the pre-pass hands Cha & Ko the state it stopped in, never its best or the input
+//! state: those were taken with the body elsewhere, and the cloth cannot go back in time.
 
 use super::cha_ko::{LoopStep, Outcome, ResolveParams, Resolver};
 use super::wicke::{WickeParams, WickeResolver, WickeStep};
@@ -160,6 +165,10 @@ pub struct CombinedResolver {
     input_pairs: Option<usize>,
     /// Cha & Ko + finish rounds started.
     rounds: usize,
+    /// Per obstacle, where the caller wants it at the end of the next step.
+    next_obstacle: Vec<Option<Vec<Vec3>>>,
+    /// Whether an obstacle has moved since the start.
+    obstacle_moved: bool,
 }
 
 impl CombinedResolver {
@@ -197,6 +206,8 @@ impl CombinedResolver {
             },
             input_pairs: None,
             rounds: 1,
+            next_obstacle: Vec::new(),
+            obstacle_moved: false,
         })
     }
 
@@ -208,13 +219,38 @@ impl CombinedResolver {
         Ok(())
     }
 
-    /// Adds a static obstacle to every stage.
+    /// Adds an obstacle to every stage (static unless moved with
+    /// [`CombinedResolver::set_obstacle_next_positions`]).
     pub fn add_obstacle(&mut self, o: Obstacle) -> Result<()> {
         if let Some(s) = self.simulator_mut() {
             s.add_obstacle(o.clone())?;
         }
         self.obstacles.push(o);
+        self.next_obstacle.push(None);
         Ok(())
+    }
+
+    /// Sets where obstacle `id` (in the order added) will be at the end of the next step, in
+    /// whichever stage takes it (`Simulator::set_obstacle_next_positions`).
+    pub fn set_obstacle_next_positions(&mut self, id: usize, positions: &[Vec3]) -> Result<()> {
+        if id >= self.obstacles.len() {
+            return Err(crate::error::Error::Parameter(format!("no obstacle {id}")));
+        }
+        if let Some(s) = self.simulator_mut() {
+            s.set_obstacle_next_positions(id, positions)?;
+        }
+        self.next_obstacle[id] = Some(positions.to_vec());
+        Ok(())
+    }
+
+    /// A step was taken: the obstacles are where the caller asked them to be.
+    fn advance_obstacles(&mut self) {
+        for (o, next) in self.obstacles.iter_mut().zip(&mut self.next_obstacle) {
+            if let Some(p) = next.take() {
+                self.obstacle_moved |= p != o.positions;
+                o.positions = p;
+            }
+        }
     }
 
     /// The active stage's simulator (`None` once done).
@@ -281,15 +317,23 @@ impl CombinedResolver {
         for &v in &self.pinned {
             s.set_pinned(v, true)?;
         }
-        for o in &self.obstacles {
+        for (id, (o, next)) in self.obstacles.iter().zip(&self.next_obstacle).enumerate() {
             s.add_obstacle(o.clone())?;
+            if let Some(p) = next {
+                s.set_obstacle_next_positions(id, p)?;
+            }
         }
         Ok(())
     }
 
     /// Ends the pre-pass: Cha & Ko from its best state, or from the input when the best state
-    /// kept more than `prepass_keep_below` of the input's pairs.
+    /// kept more than `prepass_keep_below` of the input's pairs; from where it stopped once an
+    /// obstacle has moved.
     fn end_prepass(&mut self) -> Result<()> {
+        if self.obstacle_moved {
+            let pos = self.positions().to_vec();
+            return self.start_cha_ko(&pos);
+        }
         let keep = self
             .input_pairs
             .is_some_and(|n| (self.best.pairs as f64) <= self.params.prepass_keep_below * n as f64);
@@ -385,6 +429,7 @@ impl CombinedResolver {
                     }
                     let rec = CombinedStep::Wicke(stage, s);
                     self.history.push(rec.clone());
+                    self.advance_obstacles();
                     return Ok(Some(rec));
                 }
                 Active::ChaKo(c) => {
@@ -400,6 +445,7 @@ impl CombinedResolver {
                     let (s, _) = c.step()?;
                     let rec = CombinedStep::ChaKo(Box::new(s));
                     self.history.push(rec.clone());
+                    self.advance_obstacles();
                     return Ok(Some(rec));
                 }
             }
