@@ -145,6 +145,10 @@ pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
     if std::env::var("CHAKO_HEAVY_FANS").is_ok_and(|s| s == "1") {
         p.heavy_scope = untangle::methods::cha_ko::subjects::HeavyScope::SubjectsAndFans;
     }
+    // CHAKO_UV_UPDATE=0: m-CCH alone, no pulls or shrinks (`ResolveParams::uv_update`).
+    if std::env::var("CHAKO_UV_UPDATE").is_ok_and(|s| s == "0") {
+        p.uv_update = false;
+    }
 }
 
 /// The loop simulator's material and solver settings from the environment (each unset
@@ -325,4 +329,20 @@ pub fn schedule_params(p: &mut untangle::methods::cha_ko::Params) {
     if let Some(v) = env("CHAKO_PULL_ORDER") {
         p.pull_order = [PullOrder::Index, PullOrder::FewestOutmostNeighbours][v as usize];
     }
+}
+
+/// The exploded handkerchief of `seed` with the explosion's knobs from the environment:
+/// `EXPLODE_R0` (ball radius, default `R0`), `EXPLODE_CENTRAL` (half-width or radius of the
+/// thrown area, default `CENTRAL`), `EXPLODE_DISC=1` (a central disc instead of a square).
+#[allow(dead_code)]
+pub fn exploded_scene(seed: u64, cells: usize) -> untangle::scenes::Scene {
+    use untangle::scenes::exploded::{exploded_with, Explosion};
+    let env = |k: &str| std::env::var(k).ok().map(|s| s.parse::<f64>().expect(k));
+    let d = Explosion::default();
+    let e = Explosion {
+        r0: env("EXPLODE_R0").unwrap_or(d.r0),
+        central: env("EXPLODE_CENTRAL").unwrap_or(d.central),
+        disc: env("EXPLODE_DISC").is_some_and(|v| v != 0.0),
+    };
+    exploded_with(seed, cells, e)
 }

@@ -21,18 +21,51 @@ pub const R0: f64 = 0.25;
 /// Half-width of the central area whose vertices are thrown.
 pub const CENTRAL: f64 = 0.3001;
 
+/// Where and how far the vertices of the handkerchief are thrown (Cha & Ko 2022, Sec. 9.2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Explosion {
+    /// Ball radius `r0`, relative to the handkerchief side 1.
+    pub r0: f64,
+    /// Half-width of the central square (or radius of the central disc) whose vertices are thrown.
+    pub central: f64,
+    /// A central disc instead of a square.
+    pub disc: bool,
+}
+
+impl Default for Explosion {
+    fn default() -> Self {
+        Explosion {
+            r0: R0,
+            central: CENTRAL,
+            disc: false,
+        }
+    }
+}
+
 /// The exploded handkerchief for `seed`, with `n x n` cells (`n = 14` in the paper's setting).
 pub fn exploded(seed: u64, n: usize) -> Scene {
+    exploded_with(seed, n, Explosion::default())
+}
+
+/// [`exploded`] with the explosion's parameters given.
+pub fn exploded_with(seed: u64, n: usize, explosion: Explosion) -> Scene {
     let n = n.max(4);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let base = handkerchief("handkerchief", n, n, 1.0, 1.0, |p| Vec3::new(p.x, p.y, 0.0));
+    let c = explosion.central;
     let kept: Vec<bool> = base
         .uv
         .as_ref()
         .expect("handkerchief has uv")
         .coords
         .iter()
-        .map(|p| p.x.abs() > CENTRAL || p.y.abs() > CENTRAL)
+        .map(|p| {
+            if explosion.disc {
+                p.x * p.x + p.y * p.y > c * c
+            } else {
+                p.x.abs() > c || p.y.abs() > c
+            }
+        })
         .collect();
     for _attempt in 0..1000 {
         let mut m = base.clone();
@@ -40,7 +73,7 @@ pub fn exploded(seed: u64, n: usize) -> Scene {
             if b {
                 continue;
             }
-            let r: f64 = rng.random_range(0.0..R0);
+            let r: f64 = rng.random_range(0.0..explosion.r0);
             let phi: f64 = rng.random_range(0.0..std::f64::consts::TAU);
             let psi: f64 = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
             *p = Vec3::new(
@@ -184,5 +217,51 @@ mod tests {
             let (am, pos) = AnalysisMesh::single(&m).unwrap();
             assert!(!analyze(&am, &pos).unwrap().is_clean(), "seed {seed}");
         }
+    }
+
+    /// The thrown set is exactly the central square or disc (the oracle: the flat sheet's own
+    /// coordinates), every thrown vertex lands within `r0` of the centre, the default is the
+    /// square of `CENTRAL` and `R0`, and no path reaches the boundary.
+    #[test]
+    fn the_explosion_throws_exactly_the_central_area_into_the_ball() {
+        let flat = handkerchief("flat", 14, 14, 1.0, 1.0, |p| Vec3::new(p.x, p.y, 0.0));
+        for (e, want) in [
+            (Explosion::default(), 81),
+            (
+                Explosion {
+                    r0: 0.1,
+                    central: 0.33,
+                    disc: true,
+                },
+                69,
+            ),
+        ] {
+            for seed in 0..3 {
+                let s = exploded_with(seed, 14, e);
+                let m = &s.meshes[0];
+                let mut thrown = 0;
+                for (p, q) in m.positions.iter().zip(&flat.positions) {
+                    let inside = if e.disc {
+                        q.x * q.x + q.y * q.y <= e.central * e.central
+                    } else {
+                        q.x.abs() <= e.central && q.y.abs() <= e.central
+                    };
+                    if inside {
+                        thrown += 1;
+                        assert!(p.norm() < e.r0, "{e:?} seed {seed}: {p:?}");
+                    } else {
+                        assert_eq!(p, q);
+                    }
+                }
+                assert_eq!(thrown, want, "{e:?}");
+                let (am, pos) = AnalysisMesh::single(m).unwrap();
+                let a = analyze(&am, &pos).unwrap();
+                assert!(!a.is_clean() && a.paths.iter().all(|p| p.closed));
+            }
+        }
+        assert_eq!(
+            exploded(5, 14).meshes[0].positions,
+            exploded_with(5, 14, Explosion::default()).meshes[0].positions
+        );
     }
 }
