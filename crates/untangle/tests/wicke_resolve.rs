@@ -159,7 +159,8 @@ proptest! {
     }
 }
 
-/// The forces of the CLOSED case: every inside vertex of both sheets is free and pushed toward
+/// The forces of the CLOSED case: the free set is inside regions plus intersecting corners,
+/// and every inside vertex of both sheets is pushed toward
 /// the other sheet (its target lies on a triangle of the other sheet, and the force points
 /// across the sheet it penetrates); with symmetric forces the total force is zero.
 #[test]
@@ -179,9 +180,21 @@ fn closed_case_forces_pull_each_inside_vertex_to_the_other_sheet() {
     }
     assert!(!inside.is_empty());
     for &v in &inside {
-        assert!(free[v as usize]);
         assert!(acc[v as usize].norm() > 0.0, "vertex {v} has no force");
     }
+    // The free set is exactly Sec. 5.2's: inside vertices and the corners of intersecting
+    // triangles (whatever the forces did).
+    let mut want = vec![false; pos.len()];
+    for &v in &inside {
+        want[v as usize] = true;
+    }
+    for t in a.intersecting_triangles() {
+        for v in am.triangles[t as usize] {
+            want[v as usize] = true;
+        }
+    }
+    assert_eq!(free, want);
+    assert_eq!(rep.free_vertices, want.iter().filter(|&&f| f).count());
     // The dent of sheet B pokes up through sheet A (z ~ 0) and A's inside region is pushed
     // down, B's up: check the sign of z against each vertex's own sheet.
     let n_a = g.mesh.positions.len() / 2;

@@ -296,6 +296,11 @@ impl UvLocator {
 
 /// Barycentric coordinates of the point of triangle `tri` closest to `p`, and the squared
 /// distance (0 when `p` is inside or on the triangle).
+///
+/// A planar specialisation of `geom::distance::point_triangle`: in the plane, a point inside
+/// gets a distance of exactly 0 (its own barycentric coordinates, no projection), which
+/// [`UvLocator::locate`]'s grid fast path relies on; the 3-D version's projection leaves a
+/// rounding residue there and always lets the edges compete.
 pub fn closest_barycentric(tri: &[Vec2; 3], p: &Vec2) -> ([f64; 3], f64) {
     let [a, b, c] = *tri;
     let cross = |u: Vec2, v: Vec2| u.x * v.y - u.y * v.x;

@@ -193,6 +193,10 @@ impl ForceContext {
                 rep.unhandled_paths += 1;
                 continue;
             }
+            // The inside region is free (Sec. 5.1) whether or not a correspondence can be fitted.
+            for &v in inside {
+                free[v as usize] = true;
+            }
             let maps = panel_maps(&self.garment, &samples, p.max_centers);
             if maps.is_empty() {
                 rep.unhandled_paths += 1;
@@ -203,9 +207,6 @@ impl ForceContext {
                     .into_iter()
                     .collect()
             } else {
-                for &v in inside {
-                    free[v as usize] = true;
-                }
                 self.vertex_sources(inside, &maps)
             };
             let pulled = self.pull_to_targets(&sources, &maps, pos, mass, p, &mut acc);
