@@ -156,3 +156,38 @@ fn combined_follows_an_animated_body_and_takes_a_static_one() {
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
+
+/// A body that rises through the cloth's place and beyond, over 30 steps: every method stops
+/// clean after a few steps, then the rest of the animation is played with full collision
+/// handling, so the output rests on the body's last frame (z = 0.4 plus its 2 mm thickness)
+/// instead of where the cloth was when the method stopped (z in [-0.2, 0.08]).
+#[test]
+fn every_method_plays_an_animated_body_to_its_last_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let quad =
+        |z: f64| format!("v -2 -2 {z}\nv 2 -2 {z}\nv 2 2 {z}\nv -2 2 {z}\nf 1 2 3\nf 1 3 4\n");
+    std::fs::create_dir(dir.path().join("lift")).unwrap();
+    std::fs::write(dir.path().join("lift/a.obj"), quad(-0.5)).unwrap();
+    std::fs::write(dir.path().join("lift/b.obj"), quad(0.4)).unwrap();
+    for method in ["cha-ko", "wicke", "combined"] {
+        let o = fix(
+            dir.path(),
+            &["closed"],
+            method,
+            &["--body", "lift", "--body-frame-steps", "30"],
+        );
+        assert_eq!(o.status.code(), Some(0), "{method}: {}", stderr(&o));
+        assert!(stdout(&o).contains("to play the rest of the body animation"));
+        let r = json(&dir.path().join("rep.json"));
+        let steps = r["steps"].as_array().unwrap().len();
+        assert!(steps > 0 && steps < 30, "{method}: {steps}");
+        assert_eq!(r["body_tail_steps"], 30 - steps, "{method}");
+        assert_eq!(r["output_intersection_free"], true);
+        let out = untangle::mesh::obj::read_obj(&dir.path().join("fixed.obj")).unwrap();
+        let zs: Vec<f64> = out.positions.iter().map(|p| p.z).collect();
+        let (lo, hi) = zs
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &z| (a.min(z), b.max(z)));
+        assert!(lo > 0.4 && hi < 0.45, "{method}: z in [{lo}, {hi}]");
+    }
+}

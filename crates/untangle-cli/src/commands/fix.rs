@@ -19,7 +19,7 @@ use untangle::mesh::{obj, Garment, Mesh};
 use untangle::methods::cha_ko::{
     AdaptiveIntegrator, LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver,
 };
-use untangle::sim::{Integrator, Simulator};
+use untangle::sim::{Integrator, SimParams, Simulator, UniformThickness};
 
 /// Resolution methods.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -63,7 +63,8 @@ pub struct Args {
     pub frame_every: usize,
     /// A body the cloth collides with: an OBJ file (static), or a directory of OBJ frames
     /// (sorted by name) played one frame every `--body-frame-steps` steps, interpolated
-    /// linearly, the last one then held.
+    /// linearly, the last one then held. A method that ends clean before the last frame hands
+    /// over to plain simulation with full collision handling until the body has played out.
     #[arg(long)]
     pub body: Option<PathBuf>,
     /// How the body is placed: `--body-scale`, `--body-offset`, `--body-z-up`.
@@ -295,6 +296,8 @@ impl Setup<'_> {
 pub struct FixRun {
     /// The loop's summary.
     pub summary: ResolveSummary,
+    /// Plain simulator steps run after the loop resolved, to play the rest of an animated body.
+    pub body_tail_steps: usize,
     /// Every step.
     pub history: Vec<LoopStep>,
     /// The garment at its final positions (original uv).
@@ -423,10 +426,27 @@ pub fn untangle(
     };
     pb.finish_and_clear();
     let summary = resolver.summary(outcome);
-    let final_analysis = scene.analyse(resolver.simulator())?;
+    let tail = if outcome == Outcome::Resolved {
+        play_rest_of_body(
+            garment,
+            resolver.simulator().positions(),
+            resolver.simulator().params(),
+            resolver.chako().params().eps,
+            setup,
+            resolver.history().len(),
+            body_span,
+        )?
+    } else {
+        None
+    };
+    let body_tail_steps = tail
+        .as_ref()
+        .map_or(0, |_| body_span - resolver.history().len());
+    let final_sim = tail.as_ref().unwrap_or(resolver.simulator());
+    let final_analysis = scene.analyse(final_sim)?;
     let final_pos = scene.pos.clone();
     let mut out_mesh = garment.mesh.clone();
-    out_mesh.positions = resolver.simulator().positions().to_vec();
+    out_mesh.positions = final_sim.positions().to_vec();
     let history = resolver.history().to_vec();
     let final_report = Report::new(&scene.am, &final_pos, &final_analysis);
     let final_json: serde_json::Value = serde_json::from_str(&final_report.to_json())?;
@@ -443,6 +463,7 @@ pub fn untangle(
         "output_intersecting_pairs": final_analysis.segments.len(),
         "input_body_intersecting_pairs": input_body_pairs,
         "summary": summary,
+        "body_tail_steps": body_tail_steps,
         "steps": history.iter().map(step_json).collect::<Vec<_>>(),
         "final_analysis": final_json,
         "step_details": history,
@@ -450,6 +471,7 @@ pub fn untangle(
     });
     Ok(FixRun {
         summary,
+        body_tail_steps,
         history,
         out_mesh,
         final_am: scene.am,
@@ -460,6 +482,46 @@ pub fn untangle(
         input_body_pairs,
         report,
     })
+}
+
+/// Plays the rest of an animated body after a method stopped clean at step `from`, before the
+/// body reached its last frame (step `body_span`): plain simulator steps with full collision
+/// handling (`eps` for every pair), from `positions` at rest, with the loop's simulator
+/// settings `params` and the pins, so the output fits the body's last frame instead of the frame
+/// the method happened to stop at. The cloth stays free of self-intersections by the
+/// simulator's guarantee; the caller's final analysis checks the body too. `None` without an
+/// animated body or when it has already played out.
+pub(crate) fn play_rest_of_body(
+    garment: &Garment,
+    positions: &[Vec3],
+    params: &SimParams,
+    eps: f64,
+    setup: &Setup,
+    from: usize,
+    body_span: usize,
+) -> Result<Option<Simulator>> {
+    let Some(b) = setup
+        .body
+        .filter(|b| b.frames.len() > 1 && from < body_span)
+    else {
+        return Ok(None);
+    };
+    let mut m = garment.mesh.clone();
+    m.positions = positions.to_vec();
+    let g = Garment::new(m).context("garment")?;
+    let mut sim = Simulator::new(&g, params.clone()).context("simulator")?;
+    for &v in setup.pinned {
+        sim.set_pinned(v, true)?;
+    }
+    let mut body = setup.obstacle()?.expect("a body");
+    body.positions = body_at(b, from, body_span);
+    sim.add_obstacle(body)?;
+    let policy = UniformThickness(eps);
+    for k in from..body_span {
+        sim.set_obstacle_next_positions(0, &body_at(b, k + 1, body_span))?;
+        sim.step(&policy);
+    }
+    Ok(Some(sim))
 }
 
 /// The body section of a fix report (null without `--body`).
@@ -719,6 +781,13 @@ pub fn text_summary(fix: &FixRun) -> String {
         if s.steps == 1 { "" } else { "s" },
         s.initial_pairs, s.final_pairs, s.initial_red_vertices, s.final_red_vertices
     );
+    if fix.body_tail_steps > 0 {
+        let _ = writeln!(
+            t,
+            "then {} steps with full collision handling to play the rest of the body animation",
+            fix.body_tail_steps
+        );
+    }
     if fix.is_clean() {
         let _ = writeln!(t, "output: free of intersections");
     } else {

@@ -95,8 +95,12 @@ impl Runner {
 
     fn ms(&self) -> f64 {
         match self {
-            Runner::Wicke(w) => w.history().iter().map(|s| s.ms.iter().sum::<f64>()).sum(),
-            Runner::Combined(c) => c.history().iter().map(CombinedStep::ms).sum(),
+            // Folds from +0.0: an empty `sum` of floats is -0.0, printed "-0.00".
+            Runner::Wicke(w) => w
+                .history()
+                .iter()
+                .fold(0.0, |t, s| t + s.ms.iter().sum::<f64>()),
+            Runner::Combined(c) => c.history().iter().fold(0.0, |t, s| t + s.ms()),
         }
     }
 }
@@ -186,6 +190,12 @@ pub fn run(
             None => {
                 let n = garment.mesh.positions.len();
                 scene.pos[..n].copy_from_slice(runner.positions());
+                if let Runner::Combined(c) = runner {
+                    // The loop has stopped: the body is where its last step left it.
+                    if let Some(body) = c.obstacles().first() {
+                        scene.pos[n..].copy_from_slice(&body.positions);
+                    }
+                }
                 untangle::analysis::analyze(&scene.am, &scene.pos).context("intersection analysis")
             }
         }
@@ -236,7 +246,24 @@ pub fn run(
     let (word, outcome) = runner
         .stopped()
         .unwrap_or(("stopped", "Stopped".to_string()));
-    let final_analysis = analyse(&mut scene, &runner)?;
+    let tail = if word == "resolved" {
+        super::fix::play_rest_of_body(
+            garment,
+            runner.positions(),
+            &p.sim,
+            p.thickness,
+            setup,
+            steps_json.len(),
+            body_span,
+        )?
+    } else {
+        None
+    };
+    let body_tail_steps = tail.as_ref().map_or(0, |_| body_span - steps_json.len());
+    let final_analysis = match &tail {
+        Some(sim) => scene.analyse(sim)?,
+        None => analyse(&mut scene, &runner)?,
+    };
     let final_pos = scene.pos.clone();
     let clean = final_analysis.is_clean();
     let steps = steps_json.len();
@@ -250,7 +277,7 @@ pub fn run(
         }
     }
     let mut out_mesh = garment.mesh.clone();
-    out_mesh.positions = runner.positions().to_vec();
+    out_mesh.positions = final_pos[..garment.mesh.positions.len()].to_vec();
     obj::write_obj(
         &args.out,
         &out_mesh,
@@ -294,6 +321,7 @@ pub fn run(
             "params": params_json,
             "outcome": outcome,
             "steps_run": steps,
+            "body_tail_steps": body_tail_steps,
             "stage_steps": stage_steps.map(|n| serde_json::json!({
                 "prepass": n[0], "cha_ko": n[1], "finish": n[2],
             })),
@@ -324,6 +352,9 @@ pub fn run(
                 "stages: Wicke pre-pass {} steps, Cha & Ko {} steps, Wicke finish {} steps",
                 n[0], n[1], n[2]
             );
+        }
+        if body_tail_steps > 0 {
+            println!("then {body_tail_steps} steps with full collision handling to play the rest of the body animation");
         }
         if clean {
             println!("output: free of intersections");

@@ -270,6 +270,11 @@ impl CombinedResolver {
         }
     }
 
+    /// The obstacles, each where the last step left it.
+    pub fn obstacles(&self) -> &[Obstacle] {
+        &self.obstacles
+    }
+
     /// The cloth's current positions.
     pub fn positions(&self) -> &[Vec3] {
         match &self.active {
