@@ -170,11 +170,21 @@ fn every_method_plays_an_animated_body_to_its_last_frame() {
     std::fs::write(dir.path().join("lift/a.obj"), quad(-0.5)).unwrap();
     std::fs::write(dir.path().join("lift/b.obj"), quad(0.4)).unwrap();
     for method in ["cha-ko", "wicke", "combined"] {
+        let frames = format!("frames-{method}");
         let o = fix(
             dir.path(),
             &["closed"],
             method,
-            &["--body", "lift", "--body-frame-steps", "30"],
+            &[
+                "--body",
+                "lift",
+                "--body-frame-steps",
+                "30",
+                "--frames",
+                &frames,
+                "--frame-every",
+                "7",
+            ],
         );
         assert_eq!(o.status.code(), Some(0), "{method}: {}", stderr(&o));
         assert!(stdout(&o).contains("to play the rest of the body animation"));
@@ -189,5 +199,17 @@ fn every_method_plays_an_animated_body_to_its_last_frame() {
             .iter()
             .fold((f64::MAX, f64::MIN), |(a, b), &z| (a.min(z), b.max(z)));
         assert!(lo > 0.4 && hi < 0.45, "{method}: z in [{lo}, {hi}]");
+        // Frames: every 7th step of the run and of the body's tail, and the last one.
+        let mut names: Vec<String> = std::fs::read_dir(dir.path().join(&frames))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(
+            names.last().unwrap(),
+            "frame_0030.obj",
+            "{method}: {names:?}"
+        );
+        assert!(names.contains(&"frame_0028.obj".to_string()), "{names:?}");
     }
 }

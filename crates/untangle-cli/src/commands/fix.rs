@@ -433,6 +433,7 @@ pub fn untangle(
             resolver.simulator().params(),
             resolver.chako().params().eps,
             setup,
+            &mut scene,
             resolver.history().len(),
             body_span,
         )?
@@ -489,14 +490,17 @@ pub fn untangle(
 /// handling (`eps` for every pair), from `positions` at rest, with the loop's simulator
 /// settings `params` and the pins, so the output fits the body's last frame instead of the frame
 /// the method happened to stop at. The cloth stays free of self-intersections by the
-/// simulator's guarantee; the caller's final analysis checks the body too. `None` without an
-/// animated body or when it has already played out.
+/// simulator's guarantee; the caller's final analysis checks the body too. With `--frames` it
+/// writes these steps' frames (and always the last). `None` without an animated body or when
+/// it has already played out.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn play_rest_of_body(
     garment: &Garment,
     positions: &[Vec3],
     params: &SimParams,
     eps: f64,
     setup: &Setup,
+    scene: &mut Scene,
     from: usize,
     body_span: usize,
 ) -> Result<Option<Simulator>> {
@@ -513,13 +517,22 @@ pub(crate) fn play_rest_of_body(
     for &v in setup.pinned {
         sim.set_pinned(v, true)?;
     }
-    let mut body = setup.obstacle()?.expect("a body");
+    let Some(mut body) = setup.obstacle()? else {
+        return Ok(None);
+    };
     body.positions = body_at(b, from, body_span);
     sim.add_obstacle(body)?;
     let policy = UniformThickness(eps);
     for k in from..body_span {
         sim.set_obstacle_next_positions(0, &body_at(b, k + 1, body_span))?;
         sim.step(&policy);
+        if let Some((dir, every)) = setup.frames {
+            if (k + 1) % every.max(1) == 0 || k + 1 == body_span {
+                let a = scene.analyse(&sim)?;
+                let header = format!("untangle fix: body animation, step {}", k + 1);
+                write_frame(dir, k + 1, &scene.colored_obj(&a, &header))?;
+            }
+        }
     }
     Ok(Some(sim))
 }

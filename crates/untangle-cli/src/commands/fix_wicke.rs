@@ -253,6 +253,7 @@ pub fn run(
             &p.sim,
             p.thickness,
             setup,
+            &mut scene,
             steps_json.len(),
             body_span,
         )?
@@ -267,7 +268,7 @@ pub fn run(
     let final_pos = scene.pos.clone();
     let clean = final_analysis.is_clean();
     let steps = steps_json.len();
-    if let Some((dir, every)) = setup.frames {
+    if let (Some((dir, every)), None) = (setup.frames, &tail) {
         if steps % every.max(1) != 0 || steps == 0 {
             let text = scene.colored_obj(
                 &final_analysis,
