@@ -396,12 +396,38 @@ mod combined {
         let mut r2 = CombinedResolver::new(&g, params(1)).unwrap();
         assert_eq!(r2.run(|_| {}).unwrap(), CombinedOutcome::Resolved);
         assert!(analyze(&am, r2.positions()).unwrap().is_clean());
-        // The first round is the same run; Cha & Ko comes back after the finish.
+        // The first round is the same run; Cha & Ko comes back after the finish, from the
+        // input (the first round started from the pre-pass's state): its first step sees the
+        // input's pairs, and from there it is Cha & Ko's own run.
         let n1 = r1.history().len();
         assert!(r1.history().iter().zip(&r2.history()[..n1]).all(
             |(a, b)| a.stage() == b.stage() && a.intersecting_pairs() == b.intersecting_pairs()
         ));
         assert_eq!(r2.history()[n1].stage(), Stage::ChaKo);
+        let first_chako = r1
+            .history()
+            .iter()
+            .find(|s| s.stage() == Stage::ChaKo)
+            .unwrap();
+        assert!(first_chako.intersecting_pairs() < r1.history()[0].intersecting_pairs());
+        assert_eq!(
+            r2.history()[n1].intersecting_pairs(),
+            r1.history()[0].intersecting_pairs()
+        );
+        let mut cp = ResolveParams::default();
+        cp.sim.gravity = Vec3::zeros();
+        let mut alone = Resolver::new(&g, cp).unwrap();
+        alone.run(|_| {}).unwrap();
+        let tail: Vec<usize> = r2.history()[n1..]
+            .iter()
+            .map(|s| s.intersecting_pairs())
+            .collect();
+        let own: Vec<usize> = alone
+            .history()
+            .iter()
+            .map(|s| s.intersecting_pairs)
+            .collect();
+        assert_eq!(tail, own);
     }
 
     /// A moving obstacle (a quad far below, sinking 1 cm per step): every stage's simulator has

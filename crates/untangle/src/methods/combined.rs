@@ -15,9 +15,14 @@
 //!    steps), Wicke's loop runs from there for at most `finish_steps` steps: the leftovers that
 //!    stall Cha & Ko (a BLI path, an LL path whose pulls saturate) are often what penalty
 //!    forces resolve in a few steps.
-//! 4. **Rounds**: if the finish also ends with tanglements left, Cha & Ko runs again from
-//!    there, then the finish again, up to `rounds` (2) rounds of stages 2-3 in all (exploded
-//!    seed 73: stuck after one round, resolved in the second).
+//! 4. **Rounds**: if the finish also ends with tanglements left, Cha & Ko runs again, then the
+//!    finish again, up to `rounds` (2) rounds of stages 2-3 in all. The second round starts
+//!    from the input when the first started from the pre-pass's state (and no obstacle has
+//!    moved), else from where the finish stopped: a state the pre-pass shook is not always a
+//!    better start than the input, and this way the combined loop resolves, budget permitting,
+//!    whatever Cha & Ko's loop alone resolves (exploded seed 73: stuck after one round, then
+//!    Cha & Ko's own 90 steps; seeds 73 and 94 stayed unresolved after two rounds that
+//!    continued from the finish's state when the RBF fits' last bits changed).
 //!
 //! Each stage runs its own simulator, built from the garment at the previous stage's positions
 //! (velocities start at zero); pinned vertices and obstacles are given to every stage. All
@@ -57,7 +62,8 @@ pub struct CombinedParams {
     /// Step budget of all stages together.
     pub max_steps: usize,
     /// Cha & Ko + finish rounds: when the finishing stage ends with tanglements left, Cha &
-    /// Ko's loop runs again from there, then the finish again, up to this many rounds in all.
+    /// Ko's loop runs again (from the input if the first round started from the pre-pass's
+    /// state, else from there), then the finish again, up to this many rounds in all.
     pub rounds: usize,
 }
 
@@ -165,6 +171,8 @@ pub struct CombinedResolver {
     input_pairs: Option<usize>,
     /// Cha & Ko + finish rounds started.
     rounds: usize,
+    /// Whether the first Cha & Ko stage started from the pre-pass's state (not the input).
+    from_prepass: bool,
     /// Per obstacle, where the caller wants it at the end of the next step.
     next_obstacle: Vec<Option<Vec<Vec3>>>,
     /// Whether an obstacle has moved since the start.
@@ -206,6 +214,7 @@ impl CombinedResolver {
             },
             input_pairs: None,
             rounds: 1,
+            from_prepass: false,
             next_obstacle: Vec::new(),
             obstacle_moved: false,
         })
@@ -342,6 +351,7 @@ impl CombinedResolver {
         let keep = self
             .input_pairs
             .is_some_and(|n| (self.best.pairs as f64) <= self.params.prepass_keep_below * n as f64);
+        self.from_prepass = keep;
         let from = if keep {
             std::mem::take(&mut self.best.positions)
         } else {
@@ -402,7 +412,14 @@ impl CombinedResolver {
                             (Stage::Prepass, _) => self.end_prepass()?,
                             _ if self.rounds < self.params.rounds && self.budget() > 0 => {
                                 self.rounds += 1;
-                                self.start_cha_ko(&pos)?;
+                                if std::mem::take(&mut self.from_prepass) && !self.obstacle_moved {
+                                    // Cha & Ko alone, from the input: what the pre-pass's state
+                                    // and the finish left is not always a better start.
+                                    let input = self.garment.mesh.positions.clone();
+                                    self.start_cha_ko(&input)?;
+                                } else {
+                                    self.start_cha_ko(&pos)?;
+                                }
                             }
                             _ => self.stop_unresolved(pos),
                         }
