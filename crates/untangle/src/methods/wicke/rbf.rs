@@ -13,7 +13,7 @@
 //! units of the parameter space.
 
 use crate::geom::Vec2;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 /// The kernel `φ(r) = r² log r` (0 at `r = 0`).
 #[inline]
@@ -114,22 +114,23 @@ impl ThinPlate {
                 a[(n + k, i)] = q;
             }
         }
-        let lu = a.full_piv_lu();
-        let mut out = [DVector::<f64>::zeros(size), DVector::<f64>::zeros(size)];
-        for (comp, sol) in out.iter_mut().enumerate() {
-            let mut b = DVector::<f64>::zeros(size);
-            for i in 0..n {
-                b[i] = vs[i][comp];
-            }
-            *sol = lu.solve(&b)?;
-            if sol.iter().any(|x| !x.is_finite()) {
-                return None;
-            }
+        // The saddle-point system (zero block below the polynomial rows) needs row pivoting;
+        // partial pivoting is enough for distinct, non-collinear centres.
+        let mut b = DMatrix::<f64>::zeros(size, 2);
+        for i in 0..n {
+            b[(i, 0)] = vs[i].x;
+            b[(i, 1)] = vs[i].y;
         }
-        let weights = (0..n).map(|i| Vec2::new(out[0][i], out[1][i])).collect();
+        let sol = a.lu().solve(&b)?;
+        if sol.iter().any(|x| !x.is_finite()) {
+            return None;
+        }
+        let weights = (0..n)
+            .map(|i| Vec2::new(sol[(i, 0)], sol[(i, 1)]))
+            .collect();
         let mut poly = [Vec2::zeros(); 3];
         for (k, p) in poly.iter_mut().enumerate().take(m) {
-            *p = Vec2::new(out[0][n + k], out[1][n + k]);
+            *p = Vec2::new(sol[(n + k, 0)], sol[(n + k, 1)]);
         }
         Some(ThinPlate {
             origin,
