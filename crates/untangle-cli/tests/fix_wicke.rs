@@ -28,6 +28,15 @@ fn fix(dir: &Path, scene: &[&str], method: &str, extra: &[&str]) -> std::process
     untangle(&f, dir)
 }
 
+/// An animated body in `dir/name`: a 4 x 4 m horizontal quad at height `zs[i]` in frame `i`.
+fn quad_frames(dir: &Path, name: &str, zs: &[f64]) {
+    std::fs::create_dir(dir.join(name)).unwrap();
+    for (i, z) in zs.iter().enumerate() {
+        let text = format!("v -2 -2 {z}\nv 2 -2 {z}\nv 2 2 {z}\nv -2 2 {z}\nf 1 2 3\nf 1 3 4\n");
+        std::fs::write(dir.join(format!("{name}/{i:02}.obj")), text).unwrap();
+    }
+}
+
 #[test]
 fn wicke_fixes_a_bbii_case_and_reports_every_step() {
     let dir = tempfile::tempdir().unwrap();
@@ -121,11 +130,7 @@ fn combined_fixes_an_exploded_handkerchief_in_stages() {
 #[test]
 fn combined_follows_an_animated_body_and_takes_a_static_one() {
     let dir = tempfile::tempdir().unwrap();
-    let quad =
-        |z: f64| format!("v -2 -2 {z}\nv 2 -2 {z}\nv 2 2 {z}\nv -2 2 {z}\nf 1 2 3\nf 1 3 4\n");
-    std::fs::create_dir(dir.path().join("body")).unwrap();
-    std::fs::write(dir.path().join("body/a.obj"), quad(-1.0)).unwrap();
-    std::fs::write(dir.path().join("body/b.obj"), quad(-1.1)).unwrap();
+    quad_frames(dir.path(), "body", &[-1.0, -1.1]);
     // An animated body far below: every stage follows it, and the report says so.
     let o = fix(dir.path(), &["closed"], "combined", &["--body", "body"]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
@@ -152,7 +157,7 @@ fn combined_follows_an_animated_body_and_takes_a_static_one() {
         dir.path(),
         &["closed"],
         "combined",
-        &["--body", "body/a.obj"],
+        &["--body", "body/00.obj"],
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
@@ -164,11 +169,7 @@ fn combined_follows_an_animated_body_and_takes_a_static_one() {
 #[test]
 fn every_method_plays_an_animated_body_to_its_last_frame() {
     let dir = tempfile::tempdir().unwrap();
-    let quad =
-        |z: f64| format!("v -2 -2 {z}\nv 2 -2 {z}\nv 2 2 {z}\nv -2 2 {z}\nf 1 2 3\nf 1 3 4\n");
-    std::fs::create_dir(dir.path().join("lift")).unwrap();
-    std::fs::write(dir.path().join("lift/a.obj"), quad(-0.5)).unwrap();
-    std::fs::write(dir.path().join("lift/b.obj"), quad(0.4)).unwrap();
+    quad_frames(dir.path(), "lift", &[-0.5, 0.4]);
     for method in ["cha-ko", "wicke", "combined"] {
         let frames = format!("frames-{method}");
         let o = fix(

@@ -288,6 +288,21 @@ mod combined {
     use untangle::methods::cha_ko::{ResolveParams, Resolver};
     use untangle::methods::combined::{CombinedOutcome, CombinedParams, CombinedResolver, Stage};
 
+    /// Intersecting pairs per step of Cha & Ko's own loop on `g` (gravity off): the oracle of
+    /// the stages that must be exactly that loop.
+    fn chako_alone_pairs(g: &Garment) -> Vec<usize> {
+        let mut cp = ResolveParams::default();
+        cp.sim.gravity = Vec3::zeros();
+        cp.max_steps = 600;
+        let mut plain = Resolver::new(g, cp).unwrap();
+        plain.run(|_| {}).unwrap();
+        plain
+            .history()
+            .iter()
+            .map(|s| s.intersecting_pairs)
+            .collect()
+    }
+
     fn params(patience: usize) -> CombinedParams {
         let mut p = CombinedParams {
             prepass_patience: patience,
@@ -337,18 +352,8 @@ mod combined {
         // No pre-pass: Cha & Ko's own loop, step for step.
         let mut c = CombinedResolver::new(&g, params(0)).unwrap();
         c.run(|_| {}).unwrap();
-        let mut cp = ResolveParams::default();
-        cp.sim.gravity = Vec3::zeros();
-        cp.max_steps = 600;
-        let mut plain = Resolver::new(&g, cp).unwrap();
-        plain.run(|_| {}).unwrap();
         let a: Vec<usize> = c.history().iter().map(|s| s.intersecting_pairs()).collect();
-        let b: Vec<usize> = plain
-            .history()
-            .iter()
-            .map(|s| s.intersecting_pairs)
-            .collect();
-        assert_eq!(a, b);
+        assert_eq!(a, chako_alone_pairs(&g));
     }
 
     /// A pre-pass that does not halve the pairs is discarded: Cha & Ko then starts from the
@@ -361,22 +366,13 @@ mod combined {
         p.prepass_keep_below = 0.0;
         let mut r = CombinedResolver::new(&g, p).unwrap();
         r.run(|_| {}).unwrap();
-        let mut cp = ResolveParams::default();
-        cp.sim.gravity = Vec3::zeros();
-        cp.max_steps = 600;
-        let mut plain = Resolver::new(&g, cp).unwrap();
-        plain.run(|_| {}).unwrap();
         let a: Vec<usize> = r
             .history()
             .iter()
             .filter(|s| s.stage() == Stage::ChaKo)
             .map(|s| s.intersecting_pairs())
             .collect();
-        let b: Vec<usize> = plain
-            .history()
-            .iter()
-            .map(|s| s.intersecting_pairs)
-            .collect();
+        let b = chako_alone_pairs(&g);
         assert!(r.stage_steps()[0] > 0);
         assert_eq!(a, b);
     }
@@ -414,20 +410,11 @@ mod combined {
             r2.history()[n1].intersecting_pairs(),
             r1.history()[0].intersecting_pairs()
         );
-        let mut cp = ResolveParams::default();
-        cp.sim.gravity = Vec3::zeros();
-        let mut alone = Resolver::new(&g, cp).unwrap();
-        alone.run(|_| {}).unwrap();
         let tail: Vec<usize> = r2.history()[n1..]
             .iter()
             .map(|s| s.intersecting_pairs())
             .collect();
-        let own: Vec<usize> = alone
-            .history()
-            .iter()
-            .map(|s| s.intersecting_pairs)
-            .collect();
-        assert_eq!(tail, own);
+        assert_eq!(tail, chako_alone_pairs(&g));
     }
 
     /// A moving obstacle (a quad far below, sinking 1 cm per step): every stage's simulator has
