@@ -229,7 +229,7 @@ pub fn boundary_samples(mesh: &Mesh, topo: &Topology, flips: &[bool], spacing: f
 /// inside its own influence region `h_i < 0`. Empty for a closed mesh.
 pub fn interior_values(mesh: &Mesh, topo: &Topology, count: usize) -> (Vec<Vec3>, Vec<f64>) {
     let nv = mesh.positions.len();
-    let dist = topo.distances_to_boundary(|v, u| {
+    let dist = topo.distances_to_boundary(|v, u, _| {
         (mesh.positions[v as usize] - mesh.positions[u as usize]).norm()
     });
     let interior: Vec<usize> = (0..nv)

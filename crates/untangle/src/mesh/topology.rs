@@ -218,12 +218,12 @@ impl Topology {
         self.edges.len()
     }
 
-    /// Per vertex, the shortest distance along edges to a boundary vertex, an edge `(v, w)`
-    /// being `len(v, w)` long (multi-source Dijkstra; ties settle the lower vertex first, so
+    /// Per vertex, the shortest distance along edges to a boundary vertex, edge `e` from `v` to
+    /// `w` being `len(v, w, e)` long (multi-source Dijkstra; ties settle the lower vertex first, so
     /// the sums are the same on every run). Infinite where no boundary is reachable (a closed
     /// surface). Used for the HRBF interior constraints (world lengths) and Wicke's BI/BI
     /// boundary field (rest lengths).
-    pub fn distances_to_boundary(&self, len: impl Fn(u32, u32) -> f64) -> Vec<f64> {
+    pub fn distances_to_boundary(&self, len: impl Fn(u32, u32, u32) -> f64) -> Vec<f64> {
         use std::cmp::Reverse;
         use std::collections::BinaryHeap;
         let mut dist = vec![f64::INFINITY; self.boundary_vertex.len()];
@@ -238,8 +238,9 @@ impl Topology {
             if d > dist[v as usize] {
                 continue;
             }
-            for &u in self.vertex_neighbors.row(v as usize) {
-                let nd = d + len(v, u);
+            let edges = self.vertex_edges.row(v as usize);
+            for (&u, &e) in self.vertex_neighbors.row(v as usize).iter().zip(edges) {
+                let nd = d + len(v, u, e);
                 if nd < dist[u as usize] {
                     dist[u as usize] = nd;
                     heap.push(Reverse((nd.to_bits(), u)));

@@ -91,10 +91,7 @@ pub fn boundary_distance(g: &Garment) -> Vec<f64> {
             }
         }
     }
-    topo.distances_to_boundary(|v, w| {
-        topo.edge_between(v, w)
-            .map_or(f64::INFINITY, |e| len[e as usize])
-    })
+    topo.distances_to_boundary(|_, _, e| len[e as usize])
 }
 
 /// Gradient of the linear interpolant of `h` on the world triangle `x` (zero when degenerate).
@@ -193,7 +190,7 @@ impl ForceContext {
                 rep.unhandled_paths += 1;
                 continue;
             }
-            // The inside region is free (Sec. 5.1) whether or not a correspondence can be fitted.
+            // The inside region is free (Sec. 5.2) whether or not a correspondence can be fitted.
             for &v in inside {
                 free[v as usize] = true;
             }
