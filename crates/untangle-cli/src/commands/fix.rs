@@ -279,6 +279,22 @@ impl Setup<'_> {
         Ok(())
     }
 
+    /// Steps over which an animated body plays (0 for a static one or none).
+    pub fn body_span(&self) -> usize {
+        self.body.map_or(0, |b| {
+            (b.frames.len().saturating_sub(1)) * self.body_frame_steps
+        })
+    }
+
+    /// Where an animated body is after `k` steps (its last frame held after the span); `None`
+    /// for a static body or none.
+    pub fn animated_body_at(&self, k: usize) -> Option<Vec<Vec3>> {
+        let span = self.body_span();
+        self.body
+            .filter(|b| b.frames.len() > 1)
+            .map(|b| body_at(b, k.min(span), span))
+    }
+
     /// The body as the simulator's obstacle, at its first frame.
     pub fn obstacle(&self) -> Result<Option<untangle::sim::Obstacle>> {
         Ok(match self.body {
@@ -386,7 +402,7 @@ pub fn untangle(
     let initial_analysis = scene.analyse(resolver.simulator())?;
     let initial_pos = scene.pos.clone();
     let initial_red = initial_analysis.coloring.num_red_vertices() as u64;
-    let (input_body_pairs, pb, body_span) = begin(
+    let (input_body_pairs, pb) = begin(
         ctx,
         setup,
         &scene,
@@ -399,13 +415,10 @@ pub fn untangle(
             break o;
         }
         let k = resolver.history().len();
-        if let Some(b) = setup.body {
-            if b.frames.len() > 1 {
-                let next = body_at(b, (k + 1).min(body_span), body_span);
-                resolver
-                    .simulator_mut()
-                    .set_obstacle_next_positions(0, &next)?;
-            }
+        if let Some(next) = setup.animated_body_at(k + 1) {
+            resolver
+                .simulator_mut()
+                .set_obstacle_next_positions(0, &next)?;
         }
         let (rec, _) = resolver.step().context("cha-ko step")?;
         pb.set_position(initial_red.saturating_sub(rec.red_vertices as u64));
@@ -435,15 +448,12 @@ pub fn untangle(
             setup,
             &mut scene,
             resolver.history().len(),
-            body_span,
         )?
     } else {
         None
     };
-    let body_tail_steps = tail
-        .as_ref()
-        .map_or(0, |_| body_span - resolver.history().len());
-    let final_sim = tail.as_ref().unwrap_or(resolver.simulator());
+    let body_tail_steps = tail.as_ref().map_or(0, |t| t.1);
+    let final_sim = tail.as_ref().map_or(resolver.simulator(), |t| &t.0);
     let final_analysis = scene.analyse(final_sim)?;
     let final_pos = scene.pos.clone();
     let mut out_mesh = garment.mesh.clone();
@@ -486,14 +496,13 @@ pub fn untangle(
 }
 
 /// Plays the rest of an animated body after a method stopped clean at step `from`, before the
-/// body reached its last frame (step `body_span`): plain simulator steps with full collision
-/// handling (`eps` for every pair), from `positions` at rest, with the loop's simulator
-/// settings `params` and the pins, so the output fits the body's last frame instead of the frame
-/// the method happened to stop at. The cloth stays free of self-intersections by the
-/// simulator's guarantee; the caller's final analysis checks the body too. With `--frames` it
-/// writes these steps' frames (and always the last). `None` without an animated body or when
-/// it has already played out.
-#[allow(clippy::too_many_arguments)]
+/// body reached its last frame ([`Setup::body_span`]): plain simulator steps with full
+/// collision handling (`eps` for every pair), from `positions` at rest, with the loop's
+/// simulator settings `params` and the pins, so the output fits the body's last frame instead
+/// of the frame the method happened to stop at. The cloth stays free of
+/// self-intersections by the simulator's guarantee; the caller's final analysis checks the body
+/// too. With `--frames` it writes these steps' frames (and always the last). The simulator and
+/// the steps taken; `None` without an animated body or when it has already played out.
 pub(crate) fn play_rest_of_body(
     garment: &Garment,
     positions: &[Vec3],
@@ -502,12 +511,9 @@ pub(crate) fn play_rest_of_body(
     setup: &Setup,
     scene: &mut Scene,
     from: usize,
-    body_span: usize,
-) -> Result<Option<Simulator>> {
-    let Some(b) = setup
-        .body
-        .filter(|b| b.frames.len() > 1 && from < body_span)
-    else {
+) -> Result<Option<(Simulator, usize)>> {
+    let span = setup.body_span();
+    let Some(start) = setup.animated_body_at(from).filter(|_| from < span) else {
         return Ok(None);
     };
     let mut m = garment.mesh.clone();
@@ -520,21 +526,23 @@ pub(crate) fn play_rest_of_body(
     let Some(mut body) = setup.obstacle()? else {
         return Ok(None);
     };
-    body.positions = body_at(b, from, body_span);
+    body.positions = start;
     sim.add_obstacle(body)?;
     let policy = UniformThickness(eps);
-    for k in from..body_span {
-        sim.set_obstacle_next_positions(0, &body_at(b, k + 1, body_span))?;
+    for k in from..span {
+        if let Some(next) = setup.animated_body_at(k + 1) {
+            sim.set_obstacle_next_positions(0, &next)?;
+        }
         sim.step(&policy);
         if let Some((dir, every)) = setup.frames {
-            if (k + 1) % every.max(1) == 0 || k + 1 == body_span {
+            if (k + 1) % every.max(1) == 0 || k + 1 == span {
                 let a = scene.analyse(&sim)?;
                 let header = format!("untangle fix: body animation, step {}", k + 1);
                 write_frame(dir, k + 1, &scene.colored_obj(&a, &header))?;
             }
         }
     }
-    Ok(Some(sim))
+    Ok(Some((sim, span - from)))
 }
 
 /// The body section of a fix report (null without `--body`).
@@ -548,7 +556,7 @@ pub(crate) fn body_json(setup: &Setup) -> serde_json::Value {
 
 /// What every fix driver does before its first step: frame 0 (with `--frames`), the note when
 /// the input already penetrates the body, and the progress bar over `len` things (`what`).
-/// Returns the input's cloth-body pairs, the bar and the body animation's span in steps.
+/// Returns the input's cloth-body pairs and the bar.
 pub(crate) fn begin(
     ctx: &Context,
     setup: &Setup,
@@ -556,7 +564,7 @@ pub(crate) fn begin(
     initial: &Analysis,
     header: &str,
     (len, what): (u64, &str),
-) -> Result<(usize, indicatif::ProgressBar, usize)> {
+) -> Result<(usize, indicatif::ProgressBar)> {
     if let Some((dir, _)) = setup.frames {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create", dir.display()))?;
@@ -566,10 +574,7 @@ pub(crate) fn begin(
     if input_body_pairs > 0 {
         ctx.say(format!("note: {}", body_note(input_body_pairs)));
     }
-    let body_span = setup.body.map_or(0, |b| {
-        (b.frames.len().saturating_sub(1)) * setup.body_frame_steps
-    });
-    Ok((input_body_pairs, progress_bar(ctx, len, what), body_span))
+    Ok((input_body_pairs, progress_bar(ctx, len, what)))
 }
 
 /// Cloth-body intersecting triangle pairs of analysis `a` of `am` at `pos`.
@@ -740,8 +745,9 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         frames: args.frames.as_deref().map(|d| (d, args.frame_every)),
     };
     match args.method {
-        Method::Wicke => return super::fix_wicke::run(&args, "wicke", &garment, &setup, ctx),
-        Method::Combined => return super::fix_wicke::run(&args, "combined", &garment, &setup, ctx),
+        Method::Wicke | Method::Combined => {
+            return super::fix_wicke::run(&args, &garment, &setup, ctx)
+        }
         Method::ChaKo => {}
     }
     let fix = untangle(&garment, args.params(), &setup, ctx)?;

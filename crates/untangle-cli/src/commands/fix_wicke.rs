@@ -5,14 +5,16 @@
 //! inputs, outputs and exit codes (0: the output is free of intersections by the analysis, 1:
 //! the run stopped with tanglements left, 2: error).
 
-use super::fix::{begin, write_frame, Args, Scene, Setup};
+use super::fix::{begin, write_frame, Args, Method, Scene, Setup};
 use crate::output::Context;
 use anyhow::{Context as _, Result};
 use untangle::analysis::report::Report;
 use untangle::analysis::{Analysis, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::{obj, Garment};
-use untangle::methods::combined::{CombinedParams, CombinedResolver, CombinedStep};
+use untangle::methods::combined::{
+    CombinedOutcome, CombinedParams, CombinedResolver, CombinedStep,
+};
 use untangle::methods::wicke::{WickeOutcome, WickeParams, WickeResolver, WickeStep};
 use untangle::sim::Simulator;
 
@@ -37,6 +39,14 @@ impl Runner {
         }
     }
 
+    /// Whether the loop has stopped with the cloth clean.
+    fn resolved(&self) -> bool {
+        match self {
+            Runner::Wicke(w) => w.stop_reason() == Some(WickeOutcome::Resolved),
+            Runner::Combined(c) => c.stop_reason() == Some(CombinedOutcome::Resolved),
+        }
+    }
+
     /// Whether the loop has stopped, and how (a word for the summary, the JSON outcome).
     fn stopped(&self) -> Option<(&'static str, String)> {
         match self {
@@ -50,9 +60,9 @@ impl Runner {
             }),
             Runner::Combined(c) => c.stop_reason().map(|o| {
                 let word = match o {
-                    untangle::methods::combined::CombinedOutcome::Resolved => "resolved",
-                    untangle::methods::combined::CombinedOutcome::StepLimit => "step limit reached",
-                    untangle::methods::combined::CombinedOutcome::Unresolved => "stuck",
+                    CombinedOutcome::Resolved => "resolved",
+                    CombinedOutcome::StepLimit => "step limit reached",
+                    CombinedOutcome::Unresolved => "stuck",
                 };
                 (word, format!("{o:?}"))
             }),
@@ -68,26 +78,20 @@ impl Runner {
                     return Ok(None);
                 }
                 let (s, stepped) = w.step().context("wicke step")?;
-                Ok(stepped.map(|_| (s.intersecting_pairs, step_json(k, "wicke", &s))))
+                Ok(stepped.map(|_| {
+                    (
+                        s.intersecting_pairs,
+                        labelled(step_json(&s), k, "wicke".into()),
+                    )
+                }))
             }
             Runner::Combined(c) => Ok(c.step().context("combined step")?.map(|s| {
                 let json = match &s {
-                    CombinedStep::Wicke(stage, w) => step_json(
-                        k,
-                        if *stage == untangle::methods::combined::Stage::Prepass {
-                            "prepass"
-                        } else {
-                            "finish"
-                        },
-                        w,
-                    ),
-                    CombinedStep::ChaKo(l) => {
-                        let mut j = super::fix::step_json(l);
-                        j["step"] = serde_json::json!(k);
-                        j["stage"] = serde_json::json!("cha_ko");
-                        j
-                    }
+                    CombinedStep::Wicke(_, w) => step_json(w),
+                    CombinedStep::ChaKo(l) => super::fix::step_json(l),
                 };
+                // Stage labels as `Stage` serialises: prepass, cha_ko, finish.
+                let json = labelled(json, k, serde_json::json!(s.stage()));
                 (s.intersecting_pairs(), json)
             })),
         }
@@ -118,11 +122,16 @@ pub fn params(args: &Args) -> WickeParams {
     p
 }
 
-/// The per-step entry of the report for a step of Wicke's loop.
-fn step_json(k: usize, stage: &str, s: &WickeStep) -> serde_json::Value {
+/// A step's report entry with its index in the whole run and its stage.
+fn labelled(mut j: serde_json::Value, k: usize, stage: serde_json::Value) -> serde_json::Value {
+    j["step"] = serde_json::json!(k);
+    j["stage"] = stage;
+    j
+}
+
+/// The per-step entry of the report for a step of Wicke's loop (without step and stage).
+fn step_json(s: &WickeStep) -> serde_json::Value {
     serde_json::json!({
-        "step": k,
-        "stage": stage,
         "intersecting_pairs": s.intersecting_pairs,
         "tanglements": s.tanglements,
         "inside_points": s.forces.inside_points,
@@ -150,15 +159,10 @@ pub fn combined_params(args: &Args) -> CombinedParams {
 
 /// Runs the loop (`wicke` or `combined`), writes the mesh, the report and the frames, prints
 /// the summary; the exit code.
-pub fn run(
-    args: &Args,
-    method: &str,
-    garment: &Garment,
-    setup: &Setup,
-    ctx: &Context,
-) -> Result<u8> {
+pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Result<u8> {
     setup.validate()?;
-    let combined = method == "combined";
+    let combined = args.method == Method::Combined;
+    let method = if combined { "combined" } else { "wicke" };
     let p = params(args);
     let cp = combined_params(args);
     let max_steps = p.max_steps;
@@ -202,7 +206,7 @@ pub fn run(
     };
     let initial = analyse(&mut scene, &runner)?;
     let initial_pairs = initial.segments.len() as u64;
-    let (input_body_pairs, pb, body_span) = begin(
+    let (input_body_pairs, pb) = begin(
         ctx,
         setup,
         &scene,
@@ -213,8 +217,7 @@ pub fn run(
     let mut steps_json = Vec::new();
     loop {
         let k = steps_json.len();
-        if let Some(b) = setup.body.filter(|b| b.frames.len() > 1) {
-            let next = super::simulate::body_at(b, (k + 1).min(body_span), body_span);
+        if let Some(next) = setup.animated_body_at(k + 1) {
             match &mut runner {
                 Runner::Wicke(w) if w.stop_reason().is_none() => {
                     w.simulator_mut().set_obstacle_next_positions(0, &next)?
@@ -246,7 +249,7 @@ pub fn run(
     let (word, outcome) = runner
         .stopped()
         .unwrap_or(("stopped", "Stopped".to_string()));
-    let tail = if word == "resolved" {
+    let tail = if runner.resolved() {
         super::fix::play_rest_of_body(
             garment,
             runner.positions(),
@@ -255,14 +258,13 @@ pub fn run(
             setup,
             &mut scene,
             steps_json.len(),
-            body_span,
         )?
     } else {
         None
     };
-    let body_tail_steps = tail.as_ref().map_or(0, |_| body_span - steps_json.len());
+    let body_tail_steps = tail.as_ref().map_or(0, |t| t.1);
     let final_analysis = match &tail {
-        Some(sim) => scene.analyse(sim)?,
+        Some((sim, _)) => scene.analyse(sim)?,
         None => analyse(&mut scene, &runner)?,
     };
     let final_pos = scene.pos.clone();
@@ -337,7 +339,7 @@ pub fn run(
         untangle::fsio::write_atomic(j, serde_json::to_string_pretty(&report)?.as_bytes())?;
     }
     if !ctx.quiet {
-        let what = if word == "resolved" && !clean {
+        let what = if runner.resolved() && !clean {
             "cloth tanglements resolved"
         } else {
             word
