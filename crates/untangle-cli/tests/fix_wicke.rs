@@ -28,6 +28,17 @@ fn fix(dir: &Path, scene: &[&str], method: &str, extra: &[&str]) -> std::process
     untangle(&f, dir)
 }
 
+/// A run `o` of [`fix`] in `dir` that exited 0: `untangle check` finds its output clean, and
+/// its report names `method`. Returns the report.
+fn clean_run_report(dir: &Path, o: &std::process::Output, method: &str) -> serde_json::Value {
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(o));
+    let check = untangle(&["check", "fixed.obj"], dir);
+    assert_eq!(check.status.code(), Some(0), "the output is clean");
+    let rep = json(&dir.join("rep.json"));
+    assert_eq!(rep["method"], method);
+    rep
+}
+
 /// An animated body in `dir/name`: a 4 x 4 m horizontal quad at height `zs[i]` in frame `i`.
 fn quad_frames(dir: &Path, name: &str, zs: &[f64]) {
     std::fs::create_dir(dir.join(name)).unwrap();
@@ -41,16 +52,12 @@ fn quad_frames(dir: &Path, name: &str, zs: &[f64]) {
 fn wicke_fixes_a_bbii_case_and_reports_every_step() {
     let dir = tempfile::tempdir().unwrap();
     let o = fix(dir.path(), &["bbii"], "wicke", &[]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let rep = clean_run_report(dir.path(), &o, "wicke");
     assert!(
         stdout(&o).starts_with("wicke: resolved after "),
         "{}",
         stdout(&o)
     );
-    let check = untangle(&["check", "fixed.obj"], dir.path());
-    assert_eq!(check.status.code(), Some(0), "the output is clean");
-    let rep = json(&dir.path().join("rep.json"));
-    assert_eq!(rep["method"], "wicke");
     assert_eq!(rep["outcome"], "Resolved");
     assert_eq!(rep["output_intersection_free"], true);
     let steps = rep["steps"].as_array().unwrap();
@@ -104,16 +111,12 @@ fn wicke_exit_1_with_what_is_left_and_exit_2_on_bad_settings() {
 fn combined_fixes_an_exploded_handkerchief_in_stages() {
     let dir = tempfile::tempdir().unwrap();
     let o = fix(dir.path(), &["exploded", "--seed", "4"], "combined", &[]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let rep = clean_run_report(dir.path(), &o, "combined");
     assert!(
         stdout(&o).contains("stages: Wicke pre-pass "),
         "{}",
         stdout(&o)
     );
-    let check = untangle(&["check", "fixed.obj"], dir.path());
-    assert_eq!(check.status.code(), Some(0), "the output is clean");
-    let rep = json(&dir.path().join("rep.json"));
-    assert_eq!(rep["method"], "combined");
     let st = &rep["stage_steps"];
     let n: u64 = ["prepass", "cha_ko", "finish"]
         .iter()

@@ -16,6 +16,12 @@ fn scene_garment(name: &str) -> Garment {
     Garment::new(AnalysisMesh::merge_cloth(&s.meshes).unwrap()).unwrap()
 }
 
+/// The exploded handkerchief of `seed` at the paper's size (14 x 14 cells) as a garment.
+fn exploded_garment(seed: u64) -> Garment {
+    let s = untangle::scenes::exploded::exploded(seed, 14);
+    Garment::new(s.meshes[0].clone()).unwrap()
+}
+
 fn world(am: &AnalysisMesh, pos: &[Vec3], t: u32, b: &[f64; 3]) -> Vec3 {
     let c = am.triangles[t as usize];
     (0..3).fold(Vec3::zeros(), |s, k| s + pos[c[k] as usize] * b[k])
@@ -260,8 +266,7 @@ fn bibi_needs_the_boundary_forces() {
 /// the step limit instead of looping silently, and the pair count drops well below the input's.
 #[test]
 fn exploded_handkerchief_stops_with_a_reason() {
-    let s = untangle::scenes::exploded::exploded(1, 14);
-    let g = Garment::new(s.meshes[0].clone()).unwrap();
+    let g = exploded_garment(1);
     let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
     let mut p = WickeParams::default();
     p.sim.gravity = Vec3::zeros();
@@ -320,8 +325,7 @@ mod combined {
     /// loop step for step (same pair counts).
     #[test]
     fn exploded_handkerchief_resolves_in_stages() {
-        let s = untangle::scenes::exploded::exploded(4, 14);
-        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let g = exploded_garment(4);
         let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
         let mut r = CombinedResolver::new(&g, params(1)).unwrap();
         let o = r.run(|_| {}).unwrap();
@@ -360,8 +364,7 @@ mod combined {
     /// input, and its steps are exactly Cha & Ko's own loop's (oracle), after the pre-pass's.
     #[test]
     fn a_weak_prepass_is_discarded() {
-        let s = untangle::scenes::exploded::exploded(4, 14);
-        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let g = exploded_garment(4);
         let mut p = params(1);
         p.prepass_keep_below = 0.0;
         let mut r = CombinedResolver::new(&g, p).unwrap();
@@ -381,8 +384,7 @@ mod combined {
     /// second round (Cha & Ko again from the finish's state) resolves it.
     #[test]
     fn a_second_round_resolves_what_the_first_left() {
-        let s = untangle::scenes::exploded::exploded(73, 14);
-        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let g = exploded_garment(73);
         let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
         let mut one = params(1);
         one.rounds = 1;
@@ -422,8 +424,7 @@ mod combined {
     /// pre-pass stopped in (its own first analysis sees that state's pairs), not from the best.
     #[test]
     fn a_moving_obstacle_follows_every_stage() {
-        let s = untangle::scenes::exploded::exploded(4, 14);
-        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let g = exploded_garment(4);
         let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
         let quad = |k: usize| {
             let z = -1.0 - 0.01 * k as f64;
@@ -444,7 +445,7 @@ mod combined {
         let mut r = CombinedResolver::new(&g, params(1)).unwrap();
         r.add_obstacle(o).unwrap();
         assert!(r.set_obstacle_next_positions(1, &quad(1)).is_err());
-        let mut after = Vec::new(); // (stage, positions after the step)
+        let mut after = Vec::new(); // (stage, pairs at its start, positions after the step)
         loop {
             r.set_obstacle_next_positions(0, &quad(after.len() + 1))
                 .unwrap();
@@ -485,8 +486,7 @@ mod combined {
     /// The step budget covers all stages.
     #[test]
     fn the_budget_is_shared() {
-        let s = untangle::scenes::exploded::exploded(2, 14);
-        let g = Garment::new(s.meshes[0].clone()).unwrap();
+        let g = exploded_garment(2);
         let mut p = params(1);
         p.max_steps = 12;
         let mut r = CombinedResolver::new(&g, p).unwrap();
@@ -501,8 +501,7 @@ mod combined {
 #[test]
 fn same_result_for_one_and_two_threads() {
     use untangle::methods::combined::{CombinedParams, CombinedResolver};
-    let s = untangle::scenes::exploded::exploded(3, 14);
-    let g = Garment::new(s.meshes[0].clone()).unwrap();
+    let g = exploded_garment(3);
     let run = |threads: usize| {
         common::with_threads(threads, || {
             let mut p = CombinedParams {
