@@ -34,8 +34,8 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut trial_total = [0usize; 3];
     let mut steps_resolved = Vec::new();
-    // Per seed, the input's intersecting triangles and pairs (the paper's scene: 163 and ~3,900).
-    let mut input_stats: Vec<(usize, usize)> = Vec::new();
+    // Per seed, the input's intersecting triangles and pairs (the paper's scene: 163 and ~3,830).
+    let mut input_stats: Vec<(u64, u64)> = Vec::new();
     let mut resolved = 0;
     let mut monotone = 0;
     let mut independent_clean = 0;
@@ -45,11 +45,12 @@ fn main() {
         total += 1;
         let scene = common::exploded_scene(seed, cells as usize);
         let g = Garment::new(scene.meshes[0].clone()).expect("garment");
-        {
-            let (am, pos) = AnalysisMesh::single(&g.mesh).expect("analysis mesh");
-            let a = analyze(&am, &pos).expect("analysis");
-            input_stats.push((a.intersecting_triangles().len(), a.segments.len()));
-        }
+        let (am, pos) = AnalysisMesh::single(&g.mesh).expect("analysis mesh");
+        let a = analyze(&am, &pos).expect("analysis");
+        input_stats.push((
+            a.intersecting_triangles().len() as u64,
+            a.segments.len() as u64,
+        ));
         let mut p = ResolveParams::default();
         p.sim.gravity = Vec3::zeros();
         p.max_steps = max_steps as usize;
@@ -158,7 +159,6 @@ fn main() {
             .filter(|(_, w)| w[1] > w[0])
             .map(|(i, w)| (i + 1, w[0], w[1]))
             .collect();
-        let (am, _) = AnalysisMesh::single(&g.mesh).expect("analysis mesh");
         let clean = analyze(&am, r.simulator().positions()).is_ok_and(|a| a.is_clean());
         let ok = s.outcome == Outcome::Resolved;
         if let (false, Ok(dir)) = (ok, std::env::var("CHAKO_SAVE_DIR")) {
@@ -198,34 +198,31 @@ fn main() {
             common::integrator_use(&r)
         );
     }
-    steps_resolved.sort_unstable();
-    let median = if steps_resolved.is_empty() {
-        f64::NAN
-    } else {
-        let n = steps_resolved.len();
-        if n % 2 == 1 {
-            steps_resolved[n / 2] as f64
-        } else {
-            (steps_resolved[n / 2 - 1] + steps_resolved[n / 2]) as f64 / 2.0
-        }
-    };
-    let median_of = |mut v: Vec<usize>| {
-        v.sort_unstable();
-        v.get(v.len() / 2).copied().unwrap_or(0)
-    };
+    let median_steps = median(steps_resolved);
     println!();
     println!(
         "input: median intersecting triangles {}, median intersecting pairs {}",
-        median_of(input_stats.iter().map(|s| s.0).collect()),
-        median_of(input_stats.iter().map(|s| s.1).collect())
+        median(input_stats.iter().map(|s| s.0).collect()),
+        median(input_stats.iter().map(|s| s.1).collect())
     );
     println!(
-        "seeds {first}-{last}, {cells}x{cells} cells: resolved {resolved}/{total}, final state clean by an independent analysis {independent_clean}/{total}, median steps (resolved) {median}, red-vertex count monotone {monotone}/{total}, trial: steps retried {} retries {} accepted with increase {}, total wall {:.0} s",
+        "seeds {first}-{last}, {cells}x{cells} cells: resolved {resolved}/{total}, final state clean by an independent analysis {independent_clean}/{total}, median steps (resolved) {median_steps}, red-vertex count monotone {monotone}/{total}, trial: steps retried {} retries {} accepted with increase {}, total wall {:.0} s",
         trial_total[0],
         trial_total[1],
         trial_total[2],
         t_all.elapsed().as_secs_f64()
     );
+}
+
+/// The median of `v` (the mean of the two middle values for an even count; NaN when empty).
+fn median(mut v: Vec<u64>) -> f64 {
+    v.sort_unstable();
+    let n = v.len();
+    match n {
+        0 => f64::NAN,
+        _ if n % 2 == 1 => v[n / 2] as f64,
+        _ => (v[n / 2 - 1] + v[n / 2]) as f64 / 2.0,
+    }
 }
 
 /// Where the steps of one run went (`CHAKO_DIAG=1`), one block on stderr: the phases (red

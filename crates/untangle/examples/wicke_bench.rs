@@ -243,19 +243,14 @@ fn garments(sag: usize, max_steps: usize) {
 }
 
 fn main() {
+    use common::arg;
     if let Ok(sag) = std::env::var("GARMENTS") {
         garments(sag.parse().expect("GARMENTS"), 600);
         return;
     }
     if let Ok(pat) = std::env::var("COMBINED") {
         let patience: usize = pat.parse().expect("COMBINED");
-        let args: Vec<String> = std::env::args().collect();
-        let num = |i: usize, d: u64| {
-            args.get(i)
-                .map(|s| s.parse().expect("a number"))
-                .unwrap_or(d)
-        };
-        let (first, last, max_steps) = (num(1, 1), num(2, 10), num(3, 2000) as usize);
+        let (first, last, max_steps) = (arg(1, 1) as u64, arg(2, 10) as u64, arg(3, 2000));
         println!("| seed | pre-pass steps | Cha & Ko steps | finish steps | total | outcome | clean | wall s | Cha & Ko alone: steps | clean |");
         println!("|---|---|---|---|---|---|---|---|---|---|");
         let (mut totals, mut alone) = (Vec::new(), Vec::new());
@@ -303,14 +298,8 @@ fn main() {
         );
         return;
     }
-    let args: Vec<String> = std::env::args().collect();
-    let num = |i: usize, d: u64| {
-        args.get(i)
-            .map(|s| s.parse().expect("a number"))
-            .unwrap_or(d)
-    };
-    let (first, last, max_steps) = (num(1, 1), num(2, 10), num(3, 400) as usize);
-    let which = args.get(4).map(String::as_str).unwrap_or("all");
+    let (first, last, max_steps) = (arg(1, 1) as u64, arg(2, 10) as u64, arg(3, 400));
+    let which = std::env::args().nth(4).unwrap_or_else(|| "all".into());
     let mut scenes: Vec<(String, Garment)> = Vec::new();
     if which != "exploded" {
         for name in ["closed", "eight", "ll", "cross", "bibi", "bbii"] {
