@@ -516,9 +516,7 @@ pub(crate) fn play_rest_of_body(
     let Some(start) = setup.animated_body_at(from).filter(|_| from < span) else {
         return Ok(None);
     };
-    let mut m = garment.mesh.clone();
-    m.positions = positions.to_vec();
-    let g = Garment::new(m).context("garment")?;
+    let g = garment.with_positions(positions).context("garment")?;
     let mut sim = Simulator::new(&g, params.clone()).context("simulator")?;
     for &v in setup.pinned {
         sim.set_pinned(v, true)?;

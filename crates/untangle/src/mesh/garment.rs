@@ -2,7 +2,7 @@
 //! of the uv layer), with seam vertices (world vertices that have several uv copies).
 
 use super::{Mesh, Topology, UvLayer};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geom::{Vec2, Vec3};
 use crate::mesh::topology::Csr;
 
@@ -87,6 +87,36 @@ impl Garment {
             num_panels,
             uv_copies,
         })
+    }
+
+    /// The same garment with world positions `positions` (a simulator's state, say). Topology,
+    /// uv layer, panels and seams do not depend on the positions, so nothing is derived again;
+    /// unlike [`Garment::new`], a world triangle may be degenerate (a simulated cloth can crush
+    /// one; the rest shape is the uv). Errors on a wrong vertex count or a non-finite coordinate.
+    pub fn with_positions(&self, positions: &[Vec3]) -> Result<Garment> {
+        let place = self.mesh.place();
+        if positions.len() != self.mesh.positions.len() {
+            return Err(Error::input(
+                place,
+                format!(
+                    "{} positions for {} vertices",
+                    positions.len(),
+                    self.mesh.positions.len()
+                ),
+            ));
+        }
+        if let Some(i) = positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
+            return Err(Error::input(
+                place,
+                format!("vertex {} has a non-finite coordinate", i + 1),
+            ));
+        }
+        let mut g = self.clone();
+        g.mesh.positions = positions.to_vec();
+        Ok(g)
     }
 
     /// The uv layer.
@@ -285,6 +315,54 @@ pub fn unfolded_uv(positions: &[Vec3], triangles: &[[u32; 3]], topo: &Topology) 
 mod tests {
     use super::*;
     use crate::mesh::obj::parse_obj;
+
+    /// `with_positions` equals `Garment::new` of the moved mesh (everything derived from
+    /// connectivity and uv), and refuses a wrong count or a non-finite coordinate.
+    #[test]
+    fn with_positions_is_new_at_those_positions() {
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0.1\nv 2 1 0.1\n\
+                    vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 5 0\nvt 6 0\nvt 6 1\nvt 5 1\n\
+                    f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 2/5 5/6 6/7\nf 2/5 6/7 3/8\n";
+        let g = Garment::new(parse_obj(text, "s.obj", "s").unwrap()).unwrap();
+        let moved: Vec<Vec3> = g
+            .mesh
+            .positions
+            .iter()
+            .enumerate()
+            .map(|(i, p)| p + Vec3::new(0.1 * i as f64, -0.2, 0.3 * (i % 2) as f64))
+            .collect();
+        let mut m = g.mesh.clone();
+        m.positions = moved.clone();
+        let want = Garment::new(m).unwrap();
+        let got = g.with_positions(&moved).unwrap();
+        assert_eq!(got.mesh.positions, want.mesh.positions);
+        assert_eq!(got.mesh.uv, want.mesh.uv);
+        assert_eq!(got.topology.edges, want.topology.edges);
+        assert_eq!(got.panel_of_uv, want.panel_of_uv);
+        assert_eq!(got.panel_of_triangle, want.panel_of_triangle);
+        assert_eq!(got.num_panels, want.num_panels);
+        assert_eq!(got.uv_source, want.uv_source);
+        assert_eq!(
+            (0..6)
+                .map(|v| got.uv_copies.row(v).to_vec())
+                .collect::<Vec<_>>(),
+            (0..6)
+                .map(|v| want.uv_copies.row(v).to_vec())
+                .collect::<Vec<_>>()
+        );
+        // A crushed world triangle (two corners on one point) is fine here, unlike in `new`.
+        let mut flat = moved.clone();
+        flat[3] = flat[0];
+        assert!(g.with_positions(&flat).is_ok());
+        let mut m = g.mesh.clone();
+        m.positions = flat;
+        assert!(Garment::new(m).is_err());
+        let mut bad = moved.clone();
+        bad[4].y = f64::NAN;
+        let e = g.with_positions(&bad).unwrap_err().to_string();
+        assert!(e.contains("vertex 5 has a non-finite coordinate"), "{e}");
+        assert!(g.with_positions(&moved[..5]).is_err());
+    }
 
     #[test]
     fn panels_and_seams_of_two_sewn_squares() {

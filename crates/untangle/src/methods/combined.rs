@@ -320,13 +320,6 @@ impl CombinedResolver {
         self.params.max_steps.saturating_sub(self.history.len())
     }
 
-    /// Builds a stage at `positions` with the pins and obstacles.
-    fn garment_at(&self, positions: &[Vec3]) -> Result<Garment> {
-        let mut m = self.garment.mesh.clone();
-        m.positions = positions.to_vec();
-        Garment::new(m)
-    }
-
     fn configure(&self, s: &mut Simulator) -> Result<()> {
         for &v in &self.pinned {
             s.set_pinned(v, true)?;
@@ -361,7 +354,7 @@ impl CombinedResolver {
     }
 
     fn start_cha_ko(&mut self, positions: &[Vec3]) -> Result<()> {
-        let g = self.garment_at(positions)?;
+        let g = self.garment.with_positions(positions)?;
         let mut cp = self.params.cha_ko.clone();
         cp.max_steps = self.budget();
         let mut r = Resolver::new(&g, cp)?;
@@ -376,7 +369,7 @@ impl CombinedResolver {
             self.stop_unresolved(positions);
             return Ok(());
         }
-        let g = self.garment_at(&positions)?;
+        let g = self.garment.with_positions(&positions)?;
         let mut wp = self.params.wicke.clone();
         wp.max_steps = steps + 1;
         let mut r = WickeResolver::new(&g, &self.am, wp)?;
