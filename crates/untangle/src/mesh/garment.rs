@@ -316,14 +316,19 @@ mod tests {
     use super::*;
     use crate::mesh::obj::parse_obj;
 
+    /// Two unit squares sewn along x = 1; the seam vertices 2 and 5 have two uvs each.
+    fn two_sewn_squares() -> Garment {
+        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0.1\nv 2 1 0.1\n\
+                    vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 5 0\nvt 6 0\nvt 6 1\nvt 5 1\n\
+                    f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 2/5 5/6 6/7\nf 2/5 6/7 3/8\n";
+        Garment::new(parse_obj(text, "s.obj", "s").unwrap()).unwrap()
+    }
+
     /// `with_positions` equals `Garment::new` of the moved mesh (everything derived from
     /// connectivity and uv), and refuses a wrong count or a non-finite coordinate.
     #[test]
     fn with_positions_is_new_at_those_positions() {
-        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0.1\nv 2 1 0.1\n\
-                    vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 5 0\nvt 6 0\nvt 6 1\nvt 5 1\n\
-                    f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 2/5 5/6 6/7\nf 2/5 6/7 3/8\n";
-        let g = Garment::new(parse_obj(text, "s.obj", "s").unwrap()).unwrap();
+        let g = two_sewn_squares();
         let moved: Vec<Vec3> = g
             .mesh
             .positions
@@ -366,11 +371,7 @@ mod tests {
 
     #[test]
     fn panels_and_seams_of_two_sewn_squares() {
-        // Two unit squares sewn along x = 1; the seam vertices 2 and 5 have two uvs each.
-        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0.1\nv 2 1 0.1\n\
-                    vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 5 0\nvt 6 0\nvt 6 1\nvt 5 1\n\
-                    f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 2/5 5/6 6/7\nf 2/5 6/7 3/8\n";
-        let g = Garment::new(parse_obj(text, "s.obj", "s").unwrap()).unwrap();
+        let g = two_sewn_squares();
         assert_eq!(g.num_panels, 2);
         assert_eq!(g.panel_of_triangle, vec![0, 0, 1, 1]);
         assert_eq!(g.num_seam_vertices(), 2);
