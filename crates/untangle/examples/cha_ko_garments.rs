@@ -170,6 +170,7 @@ fn main() {
                 &x,
                 &untangle::analysis::Options {
                     bli_regions_red: true,
+                    winding_regions: true,
                 },
             )
             .expect("analysis");

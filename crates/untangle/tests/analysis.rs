@@ -568,6 +568,7 @@ fn bli_paths_get_a_cone_region_near_their_loop_vertex() {
             &pos,
             &Options {
                 bli_regions_red: true,
+                winding_regions: false,
             },
         )
         .unwrap();

@@ -150,3 +150,75 @@ fn untangling26_units_resolve() {
         assert_eq!(r.chako().current_uv(), r.chako().original_uv(), "{file}");
     }
 }
+
+/// The ARCSim pants (refined to >= 2,000 vertices) sagged 25 steps with self-collision off:
+/// one leg's inner wall passes into the other leg along two long BLI paths whose loop vertices
+/// are interior, so neither Wicke's boundary partition nor his cone gives them a region, and
+/// without one the loop ends stuck (docs/cha-ko.md, "BLI"). The generalized winding number
+/// (`RegionFinder::winding_region`, on in the loop) finds the wall inside the other leg: both
+/// paths get a region, every vertex of it is about 1 away from the garment's typical winding
+/// number, and the loop resolves the pants with its uv restored.
+#[test]
+fn pants_with_a_leg_inside_the_other_resolve_with_winding_regions() {
+    use untangle::analysis::{analyze_with, winding, AnalysisMesh, Options, PathKind, Region};
+    use untangle::methods::cha_ko::{Outcome, ResolveParams, Resolver};
+    use untangle::scenes::sagged;
+    let Some(shared) = shared() else { return };
+    let mut mesh = read_obj(&shared.join("data/arcsim/meshes/pants3.obj")).unwrap();
+    while mesh.positions.len() < 2000 {
+        mesh = untangle::mesh::subdivide::subdivide(&mesh);
+    }
+    let g = Garment::new(mesh.clone()).unwrap();
+    let pins = sagged::top_vertices(&mesh, &Vec3::z(), 0.03);
+    let tangled = sagged::sagged(&g, sagged::GRAVITY_Z, &pins, 25).unwrap();
+    let (am, pos) = AnalysisMesh::single(&tangled).unwrap();
+    let opts = |winding_regions| Options {
+        bli_regions_red: true,
+        winding_regions,
+    };
+    let without = analyze_with(&am, &pos, &opts(false)).unwrap();
+    let with = analyze_with(&am, &pos, &opts(true)).unwrap();
+    let bli: Vec<usize> = (0..with.paths.len())
+        .filter(|&i| with.paths[i].kind == PathKind::BoundaryLoopInside)
+        .collect();
+    assert_eq!(bli.len(), 2, "the two BLIs along the inner legs");
+    let range = 0..am.triangles.len() as u32;
+    let typical = {
+        let mut w: Vec<f64> = (0..pos.len() as u32)
+            .step_by(97)
+            .map(|v| winding::at_vertex(v, &pos, &am.triangles, range.clone()))
+            .collect();
+        w.sort_by(f64::total_cmp);
+        w[w.len() / 2]
+    };
+    for &i in &bli {
+        assert!(!matches!(without.regions[i], Region::Inside(_)));
+        let Region::Inside(vs) = &with.regions[i] else {
+            panic!("BLI {i} has no winding region");
+        };
+        assert!(vs.len() > 100, "{}", vs.len());
+        for &v in vs {
+            let w = winding::at_vertex(v, &pos, &am.triangles, range.clone());
+            assert!(
+                (w - typical).abs() > 0.5,
+                "vertex {v}: {w} against {typical}"
+            );
+        }
+    }
+    let tg = Garment::new(tangled).unwrap();
+    let mut p = ResolveParams::default();
+    p.sim.gravity = sagged::GRAVITY_Z;
+    p.max_steps = 400;
+    let mut r = Resolver::new(&tg, p).unwrap();
+    for &v in &pins {
+        r.simulator_mut().set_pinned(v, true).unwrap();
+    }
+    let s = r.run(|_| {}).unwrap();
+    assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");
+    assert!(
+        analyze_with(&am, r.simulator().positions(), &Options::default())
+            .unwrap()
+            .is_clean()
+    );
+    assert_eq!(r.chako().current_uv(), r.chako().original_uv());
+}

@@ -111,6 +111,11 @@ pub struct Args {
     /// heuristic, are coloured red and pulled out like any other region).
     #[arg(long)]
     pub no_bli_regions: bool,
+    /// Give no region to the paths Wicke's rules leave without one (by default, on a garment,
+    /// the cloth that has passed into another tube of it, found by the generalized winding
+    /// number, is coloured red and pulled out: a leg's wall inside the other leg, say).
+    #[arg(long)]
+    pub no_winding_regions: bool,
     /// Regionless-tanglement fallback (ours): after this many steps without progress while no
     /// vertex is red, colour red the corners of the intersecting triangles of tanglements that
     /// have no usable region (a fold pinched through itself, as CROSS ends up); 0 (the default)
@@ -239,6 +244,7 @@ impl Args {
             p.cha_ko.pull_order = untangle::methods::cha_ko::PullOrder::FewestOutmostNeighbours;
         }
         p.analysis.bli_regions_red = !self.no_bli_regions;
+        p.analysis.winding_regions = !self.no_winding_regions;
         match self.integrator {
             LoopIntegrator::BaraffWitkin => p.sim.integrator = Integrator::BaraffWitkin,
             LoopIntegrator::Projective => p.sim.integrator = Integrator::Projective,

@@ -15,6 +15,7 @@ pub mod regions;
 pub mod report;
 pub mod reporters;
 pub mod segments;
+pub mod winding;
 
 pub use coloring::Coloring;
 pub use crossings::Crossing;
@@ -98,6 +99,12 @@ pub struct Options {
     /// are outside Cha & Ko's method; their regions are always computed and reported, and only
     /// colour the cloth when this is set.
     pub bli_regions_red: bool,
+    /// Give the paths that get no region from Wicke's rules (BI, II, BLB and BLLB paths, cuts
+    /// that do not separate, BLIs whose boundary partition and cone both fail) the region of
+    /// the generalized winding number when their garment shows one
+    /// ([`regions::RegionFinder::winding_region`]; ours), and colour it red (a BLI's only when
+    /// `bli_regions_red` is set as well). Off in [`Options::default`]; on in Cha & Ko's loop.
+    pub winding_regions: bool,
 }
 
 /// Runs the analysis of `mesh` at positions `pos` with default [`Options`].
@@ -171,7 +178,11 @@ fn analyze_from(
             if p.kind == PathKind::BoundaryLoopInside {
                 let r = match finder.bli_boundary_partition(p) {
                     r @ Region::Inside(_) => r,
-                    _ => finder.bli_cone(p, &segs.segments, pos),
+                    _ => match finder.bli_cone(p, &segs.segments, pos) {
+                        r @ Region::Inside(_) => r,
+                        r if !options.winding_regions => r,
+                        _ => finder.winding_region(p, &segs.segments, pos),
+                    },
                 };
                 if let (Region::Inside(vs), true) = (&r, options.bli_regions_red) {
                     for &v in vs {
@@ -180,7 +191,12 @@ fn analyze_from(
                 }
                 return r;
             }
-            let r = finder.inside(p);
+            let r = match finder.inside(p) {
+                Region::NotSeparating | Region::None if options.winding_regions => {
+                    finder.winding_region(p, &segs.segments, pos)
+                }
+                r => r,
+            };
             if let Region::Inside(vs) = &r {
                 for &v in vs {
                     red_vertex[v as usize] = true;

@@ -8,6 +8,7 @@ use super::input::AnalysisMesh;
 use super::paths::{Path, PathKind};
 use super::segments::Segment;
 use crate::geom::Vec3;
+use std::ops::Range;
 
 /// Scratch buffers reused across paths (stamps avoid clearing).
 pub struct RegionFinder<'a> {
@@ -22,6 +23,11 @@ pub struct RegionFinder<'a> {
     dist: Vec<f64>,
     /// The two flood queues (kept for their capacity).
     queues: [Vec<u32>; 2],
+    /// Winding numbers computed so far ([`RegionFinder::bli_winding`]; NaN: not yet; empty
+    /// until first needed). Positions are fixed for a finder's life, so they stay valid.
+    winding: Vec<f64>,
+    /// Each object's reference winding number (median of a vertex sample), once computed.
+    reference: Vec<Option<f64>>,
 }
 
 /// Outcome for one path.
@@ -48,6 +54,8 @@ impl<'a> RegionFinder<'a> {
             roi_stamp: 0,
             dist: vec![f64::INFINITY; mesh.num_vertices()],
             queues: [Vec::new(), Vec::new()],
+            winding: Vec::new(),
+            reference: vec![None; mesh.objects.len()],
         }
     }
 
@@ -146,6 +154,156 @@ impl<'a> RegionFinder<'a> {
             }
         }
         Region::NotSeparating
+    }
+
+    /// The inside region of a path by the generalized winding number (ours), for the paths the
+    /// rules above leave without one on a garment: long BLIs whose loop vertex is interior (a
+    /// leg's inner wall passed into the other leg: neither the boundary partition nor the cone
+    /// applies), BI paths (a hem passed through the other leg's wall) and cuts that do not
+    /// separate. On a consistently oriented garment, a vertex whose cloth lies inside another
+    /// tube of the same object has a winding number ([`super::winding`]) about 1 away from the
+    /// object's typical on-surface value (the median over a fixed sample of its vertices, about
+    /// 1/2); the path's cut edges then have one such endpoint and one typical one. The region is
+    /// the flood from the atypical endpoints of (up to 16, spread) cut edges through vertices at
+    /// least 1/2 away from the typical value, never across the path's cut edges or through its
+    /// loop vertices.
+    ///
+    /// [`Region::None`] when the path runs between two objects (one garment legitimately lies
+    /// inside another), when its object is a topological disc (a sheet, like the handkerchief:
+    /// it encloses nothing) or its typical value is below 1/4 in magnitude (open sheets,
+    /// inconsistent orientation), when fewer than half of the sampled cut edges show the
+    /// contrast (at least 0.6 away against at most 0.4), or when the flood reaches half of the
+    /// object's vertices (no inside).
+    pub fn winding_region(&mut self, path: &Path, segments: &[Segment], pos: &[Vec3]) -> Region {
+        const SAMPLED_CUT_EDGES: usize = 16;
+        const REFERENCE_SAMPLE: usize = 64;
+        let Some(&first) = path.pieces().first() else {
+            return Region::None;
+        };
+        let seg = &segments[(first / 2) as usize];
+        let of = |t: u32| self.mesh.object_of_triangle[t as usize];
+        if path.cut_edges().is_empty() || of(seg.triangles[0]) != of(seg.triangles[1]) {
+            return Region::None;
+        }
+        let object = &self.mesh.objects[path.object as usize];
+        let (verts, tris) = (object.vertices.clone(), object.triangles.clone());
+        if self.winding.is_empty() {
+            self.winding = vec![f64::NAN; self.mesh.num_vertices()];
+        }
+        let reference = match self.reference[path.object as usize] {
+            Some(r) => r,
+            None => {
+                let r = if self.is_disc(&verts, &tris) {
+                    0.0
+                } else {
+                    let n = (verts.end - verts.start) as usize;
+                    let stride = n.div_ceil(REFERENCE_SAMPLE).max(1);
+                    let sample: Vec<u32> = (verts.start..verts.end).step_by(stride).collect();
+                    let mut w = self.windings(&sample, pos, tris.clone());
+                    w.sort_by(f64::total_cmp);
+                    w[w.len() / 2]
+                };
+                self.reference[path.object as usize] = Some(r);
+                r
+            }
+        };
+        if reference.abs() < 0.25 {
+            return Region::None;
+        }
+        let st = self.stamp_cut(path);
+        let topo = &self.mesh.topology;
+        let cut = path.cut_edges();
+        let stride = cut.len().div_ceil(SAMPLED_CUT_EDGES).max(1);
+        let ends: Vec<[u32; 2]> = cut
+            .iter()
+            .step_by(stride)
+            .map(|&e| topo.edges[e as usize])
+            .filter(|&[a, b]| !self.removed(a, st) && !self.removed(b, st))
+            .collect();
+        let flat: Vec<u32> = ends.iter().flatten().copied().collect();
+        let w = self.windings(&flat, pos, tris.clone());
+        let off = |x: f64| (x - reference).abs();
+        let seeds: Vec<u32> = ends
+            .iter()
+            .zip(w.chunks(2))
+            .filter_map(|(&[a, b], w)| {
+                let (da, db) = (off(w[0]), off(w[1]));
+                match (da >= 0.6 && db <= 0.4, db >= 0.6 && da <= 0.4) {
+                    (true, _) => Some(a),
+                    (_, true) => Some(b),
+                    _ => None,
+                }
+            })
+            .collect();
+        if seeds.is_empty() || 2 * seeds.len() < ends.len() {
+            return Region::None;
+        }
+        let limit = (verts.end - verts.start) as usize / 2;
+        let mut region = Vec::new();
+        let mut layer = Vec::new();
+        for &s in &seeds {
+            if self.vertex_stamp[s as usize] != st {
+                self.vertex_stamp[s as usize] = st;
+                self.vertex_side[s as usize] = 0;
+                layer.push(s);
+            }
+        }
+        while !layer.is_empty() {
+            region.extend_from_slice(&layer);
+            if region.len() > limit {
+                return Region::None;
+            }
+            let mut next = Vec::new();
+            for &v in &layer {
+                let nbrs = topo.vertex_neighbors.row(v as usize);
+                let edges = topo.vertex_edges.row(v as usize);
+                for (&u, &e) in nbrs.iter().zip(edges) {
+                    if self.edge_stamp[e as usize] == st || self.vertex_stamp[u as usize] == st {
+                        continue;
+                    }
+                    self.vertex_stamp[u as usize] = st;
+                    self.vertex_side[u as usize] = 1;
+                    next.push(u);
+                }
+            }
+            let w = self.windings(&next, pos, tris.clone());
+            layer = next
+                .into_iter()
+                .zip(w)
+                .filter(|&(_, w)| off(w) > 0.5)
+                .map(|(u, _)| u)
+                .collect();
+            for &u in &layer {
+                self.vertex_side[u as usize] = 0;
+            }
+        }
+        Region::Inside(sorted(&region))
+    }
+
+    /// Whether the object with these vertices and triangles is a topological disc (Euler
+    /// characteristic `V - E + F = 1`).
+    fn is_disc(&self, verts: &Range<u32>, tris: &Range<u32>) -> bool {
+        let topo = &self.mesh.topology;
+        let edges = topo.edges.iter().filter(|e| verts.contains(&e[0])).count() as i64;
+        let (v, f) = (
+            (verts.end - verts.start) as i64,
+            (tris.end - tris.start) as i64,
+        );
+        v - edges + f == 1
+    }
+
+    /// Winding numbers of `vertices` with respect to the triangles `tris`, memoised.
+    fn windings(&mut self, vertices: &[u32], pos: &[Vec3], tris: Range<u32>) -> Vec<f64> {
+        let todo: Vec<u32> = vertices
+            .iter()
+            .copied()
+            .filter(|&v| self.winding[v as usize].is_nan())
+            .collect();
+        let w = super::winding::at_vertices(&todo, pos, &self.mesh.triangles, tris);
+        for (v, w) in todo.into_iter().zip(w) {
+            self.winding[v as usize] = w;
+        }
+        vertices.iter().map(|&v| self.winding[v as usize]).collect()
     }
 
     /// The inside region of `path` (smaller side of its cut).

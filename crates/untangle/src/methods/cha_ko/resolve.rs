@@ -72,7 +72,11 @@ pub struct ResolveParams {
     /// Analysis options. By default BLI paths colour their cone regions red (Wicke's heuristic),
     /// which goes beyond the paper (Cha & Ko leave BLI out): their vertices are then pulled like
     /// any red region. With `bli_regions_red = false` a BLI-only tanglement is reported as a
-    /// stall ("nothing to operate on") with its location and the loop stops as stuck.
+    /// stall ("nothing to operate on") with its location and the loop stops as stuck. Paths
+    /// that get no region from Wicke's rules on a garment (long interior BLIs, BI paths, cuts
+    /// that do not separate) get the region of the generalized winding number
+    /// (`winding_regions`, on by default; ours): the cloth that has passed into another tube of
+    /// the same garment, coloured red and pulled out the same way.
     pub analysis: crate::analysis::Options,
     /// Cap of the CG iterations of one projective global step under contact terms, for the
     /// loop's simulator only (ours): when `sim.integrator` is [`Integrator::Projective`] it
@@ -120,6 +124,7 @@ impl Default for ResolveParams {
             subject_rg_scale: 1.0,
             analysis: crate::analysis::Options {
                 bli_regions_red: true,
+                winding_regions: true,
             },
             projective_cg_cap: Some(1),
             adaptive: None,
