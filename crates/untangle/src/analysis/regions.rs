@@ -28,6 +28,8 @@ pub struct RegionFinder<'a> {
     winding: Vec<f64>,
     /// Each object's reference winding number (median of a vertex sample), once computed.
     reference: Vec<Option<f64>>,
+    /// Each object's fast-winding-number hierarchy, once built.
+    trees: Vec<Option<super::winding::Tree>>,
 }
 
 /// Outcome for one path.
@@ -56,6 +58,7 @@ impl<'a> RegionFinder<'a> {
             queues: [Vec::new(), Vec::new()],
             winding: Vec::new(),
             reference: vec![None; mesh.objects.len()],
+            trees: (0..mesh.objects.len()).map(|_| None).collect(),
         }
     }
 
@@ -199,7 +202,7 @@ impl<'a> RegionFinder<'a> {
                     let n = (verts.end - verts.start) as usize;
                     let stride = n.div_ceil(REFERENCE_SAMPLE).max(1);
                     let sample: Vec<u32> = (verts.start..verts.end).step_by(stride).collect();
-                    let mut w = self.windings(&sample, pos, tris.clone());
+                    let mut w = self.windings(&sample, pos, path.object);
                     w.sort_by(f64::total_cmp);
                     w[w.len() / 2]
                 };
@@ -221,7 +224,7 @@ impl<'a> RegionFinder<'a> {
             .filter(|&[a, b]| !self.removed(a, st) && !self.removed(b, st))
             .collect();
         let flat: Vec<u32> = ends.iter().flatten().copied().collect();
-        let w = self.windings(&flat, pos, tris.clone());
+        let w = self.windings(&flat, pos, path.object);
         let off = |x: f64| (x - reference).abs();
         let seeds: Vec<u32> = ends
             .iter()
@@ -266,7 +269,7 @@ impl<'a> RegionFinder<'a> {
                     next.push(u);
                 }
             }
-            let w = self.windings(&next, pos, tris.clone());
+            let w = self.windings(&next, pos, path.object);
             layer = next
                 .into_iter()
                 .zip(w)
@@ -292,14 +295,20 @@ impl<'a> RegionFinder<'a> {
         v - edges + f == 1
     }
 
-    /// Winding numbers of `vertices` with respect to the triangles `tris`, memoised.
-    fn windings(&mut self, vertices: &[u32], pos: &[Vec3], tris: Range<u32>) -> Vec<f64> {
+    /// Winding numbers of `vertices` with respect to the triangles of `object`, memoised (by
+    /// the object's [`super::winding::Tree`], built at the first call).
+    fn windings(&mut self, vertices: &[u32], pos: &[Vec3], object: u32) -> Vec<f64> {
         let todo: Vec<u32> = vertices
             .iter()
             .copied()
             .filter(|&v| self.winding[v as usize].is_nan())
             .collect();
-        let w = super::winding::at_vertices(&todo, pos, &self.mesh.triangles, tris);
+        let tris = &self.mesh.triangles;
+        let tree = self.trees[object as usize].get_or_insert_with(|| {
+            let range = self.mesh.objects[object as usize].triangles.clone();
+            super::winding::Tree::new(pos, tris, range)
+        });
+        let w = tree.at_vertices(&todo, pos, tris);
         for (v, w) in todo.into_iter().zip(w) {
             self.winding[v as usize] = w;
         }

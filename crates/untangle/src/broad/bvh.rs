@@ -727,7 +727,7 @@ pub(crate) fn morton3(x: u64, y: u64, z: u64) -> u64 {
 
 /// Where the sorted range `codes` is split: after the last code that shares the first code's
 /// highest differing bit with the last code; the middle when all codes are equal.
-fn split_point(codes: &[u64]) -> usize {
+pub(crate) fn split_point(codes: &[u64]) -> usize {
     let (first, last) = (codes[0], codes[codes.len() - 1]);
     if first == last {
         return codes.len() / 2;
