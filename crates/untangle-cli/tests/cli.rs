@@ -217,3 +217,88 @@ fn demo_writes_its_files() {
         assert!(d.path().join("demo").join(f).is_file(), "{f}");
     }
 }
+
+/// `check --winding-regions`: two long open tubes overlapping side by side in one object (each
+/// wall between the intersection lines lies inside the other tube). Wicke's rules give their
+/// paths no region; with the flag the report gives them the walls inside the other tube,
+/// coloured red, and only vertices that are inside the other tube.
+#[test]
+fn check_winding_regions_report_the_walls_inside_the_other_tube() {
+    use std::fmt::Write;
+    let d = tempfile::tempdir().unwrap();
+    let (seg, rings, h, off) = (32usize, 32usize, 6.0f64, 0.85f64);
+    let mut obj = String::new();
+    for c in [-off, off] {
+        for r in 0..=rings {
+            for s in 0..seg {
+                let ph = std::f64::consts::TAU * s as f64 / seg as f64;
+                let z = -h / 2.0 + h * r as f64 / rings as f64;
+                writeln!(obj, "v {} {} {z}", c + ph.cos(), ph.sin()).unwrap();
+            }
+        }
+    }
+    let per = (rings + 1) * seg;
+    for t in 0..2 {
+        let id = |r: usize, s: usize| t * per + r * seg + s % seg + 1;
+        for r in 0..rings {
+            for s in 0..seg {
+                let (a, b, c, e) = (id(r, s), id(r, s + 1), id(r + 1, s + 1), id(r + 1, s));
+                writeln!(obj, "f {a} {b} {c}\nf {a} {c} {e}").unwrap();
+            }
+        }
+    }
+    std::fs::write(d.path().join("tubes.obj"), &obj).unwrap();
+    let report = |extra: &[&str]| {
+        let mut args = vec![
+            "check",
+            "tubes.obj",
+            "--json",
+            "r.json",
+            "--colored-obj",
+            "c.obj",
+        ];
+        args.extend_from_slice(extra);
+        let o = untangle(&args, d.path());
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        let text = std::fs::read_to_string(d.path().join("r.json")).unwrap();
+        let json = serde_json::from_str::<serde_json::Value>(&text).unwrap();
+        // Red vertices of the coloured OBJ ("v x y z 0.85 0.1 0.1"; orange marks the
+        // intersecting triangles, the curves' vertices have no colour).
+        let red: Vec<[f64; 3]> = std::fs::read_to_string(d.path().join("c.obj"))
+            .unwrap()
+            .lines()
+            .filter_map(|l| l.strip_prefix("v "))
+            .map(|l| {
+                l.split(' ')
+                    .map(|x| x.parse().unwrap())
+                    .collect::<Vec<f64>>()
+            })
+            .filter(|v| v.len() == 6 && v[3] > 0.8 && v[4] < 0.2)
+            .map(|v| [v[0], v[1], v[2]])
+            .collect();
+        (json, red)
+    };
+    let (plain, plain_red) = report(&[]);
+    let (with, red) = report(&["--winding-regions"]);
+    let regions = |r: &serde_json::Value| -> u64 {
+        r["paths"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|p| p["inside_vertices"].as_u64())
+            .sum()
+    };
+    assert_eq!(regions(&plain), 0, "Wicke's rules give no region");
+    assert!(plain_red.is_empty());
+    assert!(regions(&with) > 50, "{}", regions(&with));
+    assert!(red.len() > 50, "{}", red.len());
+    assert_eq!(with["red_vertices"].as_u64(), Some(red.len() as u64));
+    for p in red {
+        // On its own tube (distance 1 from its axis) and strictly inside the other one.
+        let inside = |c: f64| (p[0] - c).hypot(p[1]) < 0.999;
+        assert!(
+            inside(off) || inside(-off),
+            "{p:?} is outside the other tube"
+        );
+    }
+}

@@ -1,4 +1,5 @@
-//! `untangle check FILE... [--body FILE] [--json PATH] [--colored-obj PATH] [--png PATH]`
+//! `untangle check FILE... [--body FILE] [--json PATH] [--colored-obj PATH] [--png PATH]
+//! [--winding-regions]`
 
 use crate::output::{check_output, Context};
 use anyhow::{Context as _, Result};
@@ -25,6 +26,12 @@ pub struct Args {
     /// curves in dark blue (PNG).
     #[arg(long)]
     pub png: Option<PathBuf>,
+    /// Give the paths Wicke's rules leave without an inside region the cloth that has passed
+    /// into another tube of the same garment (generalized winding number), as `fix --method
+    /// cha-ko` does: a leg's wall inside the other leg, a hem through a sleeve. Reported as the
+    /// path's inside region; coloured red unless the path is a BLI.
+    #[arg(long)]
+    pub winding_regions: bool,
 }
 
 /// Runs `check`; exit code 0 when nothing intersects, 1 otherwise.
@@ -50,7 +57,11 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
     }
     let parts: Vec<_> = meshes.iter().map(|(m, k)| (m, *k)).collect();
     let (am, pos) = AnalysisMesh::new(&parts)?;
-    let a = analysis::analyze(&am, &pos).context("intersection analysis")?;
+    let options = analysis::Options {
+        winding_regions: args.winding_regions,
+        ..Default::default()
+    };
+    let a = analysis::analyze_with(&am, &pos, &options).context("intersection analysis")?;
     let refs: Vec<_> = meshes.iter().map(|m| &m.0).collect();
     let report = Report::new(&am, &pos, &a).with_garment_info(&refs);
     if let Some(p) = &args.json {
