@@ -29,17 +29,20 @@ fn lhuilier(p: &Vec3, a: &Vec3, b: &Vec3, c: &Vec3) -> f64 {
     excess * a.dot(&b.cross(&c)).signum()
 }
 
+/// A point with coordinates uniform in `[-h, h)`.
+fn random_point(rng: &mut impl Rng, h: f64) -> Vec3 {
+    Vec3::new(
+        rng.random_range(-h..h),
+        rng.random_range(-h..h),
+        rng.random_range(-h..h),
+    )
+}
+
 #[test]
 fn solid_angles_match_lhuilier_on_random_triangles() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-    let mut r = || {
-        Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        )
-    };
     for _ in 0..2000 {
+        let mut r = || random_point(&mut rng, 1.0);
         let (p, a, b, c) = (r(), r(), r(), r());
         let got = solid_angle(&p, &a, &b, &c);
         let want = lhuilier(&p, &a, &b, &c);
@@ -63,11 +66,7 @@ fn closed_sphere_has_winding_one_inside_zero_outside_and_a_half_on_it() {
     let mut pos = m.positions.clone();
     let mut expected = Vec::new();
     for _ in 0..200 {
-        let d = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
+        let d = random_point(&mut rng, 1.0);
         let r = rng.random_range(0.0..2.0);
         if d.norm() < 1e-3 || (0.95..1.05).contains(&r) {
             continue;
@@ -225,29 +224,14 @@ fn tree_matches_the_direct_sum() {
     let (tubes, _) = overlapping_tubes(0.85);
     let mut sphere = sphere_mesh("s", &Vec3::zeros(), 1.0, 20);
     for _ in 0..100 {
-        sphere.positions.push(Vec3::new(
-            rng.random_range(-2.0..2.0),
-            rng.random_range(-2.0..2.0),
-            rng.random_range(-2.0..2.0),
-        ));
+        sphere.positions.push(random_point(&mut rng, 2.0));
     }
     let mut soup_pos = Vec::new();
     let mut soup_tris = Vec::new();
     for k in 0..600u32 {
-        let c = Vec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
+        let c = random_point(&mut rng, 1.0);
         for _ in 0..3 {
-            soup_pos.push(
-                c + 0.1
-                    * Vec3::new(
-                        rng.random_range(-1.0..1.0),
-                        rng.random_range(-1.0..1.0),
-                        rng.random_range(-1.0..1.0),
-                    ),
-            );
+            soup_pos.push(c + 0.1 * random_point(&mut rng, 1.0));
         }
         soup_tris.push([3 * k, 3 * k + 1, 3 * k + 2]);
     }

@@ -113,32 +113,8 @@ impl Tree {
         if cents.is_empty() {
             return tree;
         }
-        let (mut mn, mut mx) = (Vec3::repeat(f64::INFINITY), Vec3::repeat(f64::NEG_INFINITY));
-        for c in &cents {
-            mn = mn.inf(c);
-            mx = mx.sup(c);
-        }
-        let ext = mx - mn;
-        const TOP: u64 = (1 << 21) - 1;
-        let q = |v: f64, e: f64| {
-            if e > 0.0 {
-                ((v / e * TOP as f64) as u64).min(TOP)
-            } else {
-                0
-            }
-        };
-        let mut keyed: Vec<(u64, u32)> = cents
-            .iter()
-            .enumerate()
-            .map(|(i, c)| {
-                let d = c - mn;
-                let code = crate::broad::bvh::morton3(q(d.x, ext.x), q(d.y, ext.y), q(d.z, ext.z));
-                (code, i as u32)
-            })
-            .collect();
-        crate::radix::sort_by_key(&mut keyed, |k| k.0);
-        let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
-        tree.order = keyed.iter().map(|k| k.1 + range.start).collect();
+        let (codes, order) = crate::broad::bvh::morton_sorted(&cents);
+        tree.order = order.into_iter().map(|t| t + range.start).collect();
         tree.build(&codes, 0, &cents, range.start, pos, tris);
         tree
     }

@@ -10,7 +10,7 @@
 
 use super::keys::{self, KeyBlock, Keys};
 use super::lanes::{self, Block, BLOCK};
-use crate::geom::Aabb;
+use crate::geom::{Aabb, Vec3};
 
 /// Most primitives per leaf of [`Bvh::build`].
 pub const LEAF_SIZE: usize = 4;
@@ -709,6 +709,39 @@ pub(super) fn overlap(a: &Aabb, b: &Aabb) -> bool {
         & (b.min.y <= a.max.y)
         & (a.min.z <= b.max.z)
         & (b.min.z <= a.max.z)
+}
+
+/// The indices of `points` sorted along the Morton (Z-order) curve over their bounding box
+/// (21 bits per axis; ties by index, a stable radix sort), with their codes in that order.
+pub(crate) fn morton_sorted(points: &[Vec3]) -> (Vec<u64>, Vec<u32>) {
+    let Some(first) = points.first() else {
+        return (Vec::new(), Vec::new());
+    };
+    let (lo, hi) = points
+        .iter()
+        .fold((*first, *first), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+    let ext = hi - lo;
+    const TOP: u64 = (1 << 21) - 1;
+    let q = |v: f64, e: f64| {
+        if e > 0.0 {
+            ((v / e * TOP as f64) as u64).min(TOP)
+        } else {
+            0
+        }
+    };
+    let mut keyed: Vec<(u64, u32)> = points
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let c = p - lo;
+            (
+                morton3(q(c.x, ext.x), q(c.y, ext.y), q(c.z, ext.z)),
+                i as u32,
+            )
+        })
+        .collect();
+    crate::radix::sort_by_key(&mut keyed, |k| k.0);
+    keyed.into_iter().unzip()
 }
 
 /// Interleaves the low 21 bits of x, y, z.

@@ -793,32 +793,8 @@ fn merge_by_rank(a: &[usize], b: &[usize], rank: &[u32]) -> Vec<usize> {
 /// The vertex indices of `pos` sorted along a Morton (Z-order) curve over their bounding box
 /// (ties by index).
 fn morton_order(pos: &[Vec3]) -> Vec<usize> {
-    let Some(first) = pos.first() else {
-        return Vec::new();
-    };
-    let (lo, hi) = pos
-        .iter()
-        .fold((*first, *first), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
-    let ext = hi - lo;
-    let max = ((1u64 << 21) - 1) as f64;
-    let q = |v: f64, e: f64| {
-        if e > 0.0 {
-            ((v / e * max) as u64).min((1 << 21) - 1)
-        } else {
-            0
-        }
-    };
-    let mut keyed: Vec<(u64, usize)> = pos
-        .iter()
-        .enumerate()
-        .map(|(v, p)| {
-            let c = p - lo;
-            let key = crate::broad::bvh::morton3(q(c.x, ext.x), q(c.y, ext.y), q(c.z, ext.z));
-            (key, v)
-        })
-        .collect();
-    keyed.sort_unstable();
-    keyed.into_iter().map(|(_, v)| v).collect()
+    let (_, order) = crate::broad::bvh::morton_sorted(pos);
+    order.into_iter().map(|v| v as usize).collect()
 }
 
 /// `((b − a) × (c − a)) · (n_a + n_b + n_c)` of triangle `t`.
