@@ -29,9 +29,11 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     // CHAKO_ONLY=<name>: one garment; CHAKO_STALLS=1: print the last stalls of a run;
     // CHAKO_KINDS=1: the path kinds (and their inside-region sizes) before and after;
-    // CHAKO_WRITE=<dir>: the tangled garment as <dir>/<name>_tangled.obj.
+    // CHAKO_WRITE=<dir>: the tangled garment as <dir>/<name>_tangled.obj;
     let only = std::env::var("CHAKO_ONLY").ok();
-    for name in ["tshirt", "dress3", "pants3"] {
+    // CHAKO_GARMENTS=a,b,...: other ARCSim meshes (e.g. dress4,jacket,sleeve).
+    let list = std::env::var("CHAKO_GARMENTS").unwrap_or_else(|_| "tshirt,dress3,pants3".into());
+    for name in list.split(',') {
         if only.as_deref().is_some_and(|o| o != name) {
             continue;
         }
