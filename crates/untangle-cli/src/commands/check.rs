@@ -162,9 +162,13 @@ pub fn summary(r: &Report) -> String {
         for p in blis.iter().take(5) {
             let [x, y, z] = p.location;
             let v = p.loop_vertices.first().map(|v| v + 1).unwrap_or(0);
+            let region = p
+                .inside_vertices
+                .map(|n| format!(" (inside region: {n} vertices)"))
+                .unwrap_or_default();
             let _ = writeln!(
                 s,
-                "  BLI on {} at vertex {v} ({x:.4}, {y:.4}, {z:.4}): outside Cha & Ko's method",
+                "  BLI on {} at vertex {v} ({x:.4}, {y:.4}, {z:.4}): outside Cha & Ko's method{region}",
                 r.objects[p.object as usize].name
             );
         }
