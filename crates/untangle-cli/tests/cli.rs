@@ -289,6 +289,16 @@ fn check_winding_regions_report_the_walls_inside_the_other_tube() {
             .sum()
     };
     assert_eq!(regions(&plain), 0, "Wicke's rules give no region");
+    let flagged = |r: &serde_json::Value| {
+        r["paths"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|p| p["winding_region"].as_bool().unwrap())
+            .count()
+    };
+    assert_eq!(flagged(&plain), 0);
+    assert!(flagged(&with) > 0);
     assert!(plain_red.is_empty());
     assert!(regions(&with) > 50, "{}", regions(&with));
     assert!(red.len() > 50, "{}", red.len());

@@ -191,7 +191,9 @@ fn pants_with_a_leg_inside_the_other_resolve_with_winding_regions() {
         w.sort_by(f64::total_cmp);
         w[w.len() / 2]
     };
+    assert!(without.winding_region_paths.is_empty());
     for &i in &bli {
+        assert!(with.winding_region_paths.contains(&(i as u32)));
         assert!(!matches!(without.regions[i], Region::Inside(_)));
         let Region::Inside(vs) = &with.regions[i] else {
             panic!("BLI {i} has no winding region");
@@ -215,6 +217,7 @@ fn pants_with_a_leg_inside_the_other_resolve_with_winding_regions() {
     }
     let s = r.run(|_| {}).unwrap();
     assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");
+    assert!(r.history()[0].winding_paths >= 2);
     assert!(
         analyze_with(&am, r.simulator().positions(), &Options::default())
             .unwrap()

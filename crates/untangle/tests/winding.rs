@@ -142,11 +142,16 @@ fn winding_regions_of_overlapping_tubes_are_the_walls_inside_the_other_tube() {
         let a = analyze_with(&am, &pos, &with).unwrap();
         let plain = analyze_with(&am, &pos, &Options::default()).unwrap();
         assert!(!a.paths.is_empty());
-        // Without the option no path has a region.
+        // Without the option no path has a region; with it, the regions are winding regions.
         assert!(plain
             .regions
             .iter()
             .all(|r| !matches!(r, Region::Inside(_))));
+        assert!(plain.winding_region_paths.is_empty());
+        let with_region: Vec<u32> = (0..a.regions.len() as u32)
+            .filter(|&i| matches!(a.regions[i as usize], Region::Inside(_)))
+            .collect();
+        assert_eq!(a.winding_region_paths, with_region);
         let mut inside: Vec<u32> = a
             .regions
             .iter()

@@ -630,6 +630,7 @@ pub(crate) fn step_json(s: &LoopStep) -> serde_json::Value {
         "tanglements": s.tanglements,
         "regionless_red": s.regionless_red,
         "slit_red": s.slit_red,
+        "winding_paths": s.winding_paths,
         "pulls": s.uv.pulls_started + s.uv.pulls_continued,
         "pulls_started": s.uv.pulls_started,
         "shrinks": s.uv.shrinks_started + s.uv.shrinks_continued,
@@ -852,6 +853,13 @@ pub fn text_summary(fix: &FixRun) -> String {
         "uv edits: {} pull levels, {} shrink levels, {} revoked levels",
         ops.0, ops.1, ops.2
     );
+    let winding_steps = fix.history.iter().filter(|h| h.winding_paths > 0).count();
+    if winding_steps > 0 {
+        let _ = writeln!(
+            t,
+            "  winding regions (cloth inside another tube of the garment) coloured red in {winding_steps} steps"
+        );
+    }
     for r in &s.finesse.rows {
         if r.count + r.unfinished > 0 {
             let _ = writeln!(

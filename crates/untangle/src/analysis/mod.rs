@@ -58,6 +58,8 @@ pub struct Analysis {
     pub tanglements: Vec<Tanglement>,
     /// Inside region of each path.
     pub regions: Vec<Region>,
+    /// The paths (ascending) whose region is a winding region ([`Options::winding_regions`]).
+    pub winding_region_paths: Vec<u32>,
     /// Red/green colouring of the cloth.
     pub coloring: Coloring,
     /// Phase timings.
@@ -169,42 +171,39 @@ fn analyze_from(
     let t3 = Instant::now();
     let mut finder = regions::RegionFinder::new(mesh);
     let mut red_vertex = vec![false; mesh.num_vertices()];
-    let regions: Vec<Region> = paths
-        .iter()
-        .map(|p| {
-            if mesh.objects[p.object as usize].kind != ObjectKind::Cloth {
-                return Region::None;
+    let mut regions = Vec::with_capacity(paths.len());
+    let mut winding_region_paths = Vec::new();
+    for (i, p) in paths.iter().enumerate() {
+        if mesh.objects[p.object as usize].kind != ObjectKind::Cloth {
+            regions.push(Region::None);
+            continue;
+        }
+        let bli = p.kind == PathKind::BoundaryLoopInside;
+        let by_rule = if bli {
+            match finder.bli_boundary_partition(p) {
+                r @ Region::Inside(_) => r,
+                _ => finder.bli_cone(p, &segs.segments, pos),
             }
-            if p.kind == PathKind::BoundaryLoopInside {
-                let r = match finder.bli_boundary_partition(p) {
-                    r @ Region::Inside(_) => r,
-                    _ => match finder.bli_cone(p, &segs.segments, pos) {
-                        r @ Region::Inside(_) => r,
-                        r if !options.winding_regions => r,
-                        _ => finder.winding_region(p, &segs.segments, pos),
-                    },
-                };
-                if let (Region::Inside(vs), true) = (&r, options.bli_regions_red) {
-                    for &v in vs {
-                        red_vertex[v as usize] = true;
-                    }
+        } else {
+            finder.inside(p)
+        };
+        let r = match by_rule {
+            Region::NotSeparating | Region::None if options.winding_regions => {
+                let r = finder.winding_region(p, &segs.segments, pos);
+                if let Region::Inside(_) = r {
+                    winding_region_paths.push(i as u32);
                 }
-                return r;
+                r
             }
-            let r = match finder.inside(p) {
-                Region::NotSeparating | Region::None if options.winding_regions => {
-                    finder.winding_region(p, &segs.segments, pos)
-                }
-                r => r,
-            };
-            if let Region::Inside(vs) = &r {
-                for &v in vs {
-                    red_vertex[v as usize] = true;
-                }
+            r => r,
+        };
+        if let (Region::Inside(vs), true) = (&r, !bli || options.bli_regions_red) {
+            for &v in vs {
+                red_vertex[v as usize] = true;
             }
-            r
-        })
-        .collect();
+        }
+        regions.push(r);
+    }
     let coloring = coloring::color(mesh, red_vertex, &crossings, &segs.segments);
     let t4 = Instant::now();
     let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
@@ -215,6 +214,7 @@ fn analyze_from(
         paths,
         tanglements,
         regions,
+        winding_region_paths,
         coloring,
         timing: Timing {
             broad_phase: ms(t0, t1),

@@ -60,6 +60,10 @@ pub struct PathReport {
     pub inside_vertices: Option<usize>,
     /// False for a partitioning kind that does not separate its mesh.
     pub separating: bool,
+    /// Whether the inside region is a winding region (ours,
+    /// [`super::regions::RegionFinder::winding_region`]; only with
+    /// [`super::Options::winding_regions`]).
+    pub winding_region: bool,
     /// Where the path is, in world space: its first loop vertex, or the centroid of the
     /// triangle holding its first piece.
     pub location: [f64; 3],
@@ -165,7 +169,15 @@ impl Report {
             .paths
             .iter()
             .zip(&a.regions)
-            .map(|(p, r)| PathReport {
+            .enumerate()
+            .map(|(i, (p, r))| {
+                (
+                    p,
+                    r,
+                    a.winding_region_paths.binary_search(&(i as u32)).is_ok(),
+                )
+            })
+            .map(|(p, r, winding)| PathReport {
                 kind: p.kind.name(),
                 split_from: p.split_from.map(|k| k.name()),
                 object: p.object,
@@ -179,7 +191,9 @@ impl Report {
                     Region::Inside(v) => Some(v.len()),
                     _ => None,
                 },
-                separating: !matches!(r, Region::NotSeparating),
+                separating: !(matches!(r, Region::NotSeparating)
+                    || winding && p.kind.is_partitioning()),
+                winding_region: winding,
                 location: location(p),
             })
             .collect();

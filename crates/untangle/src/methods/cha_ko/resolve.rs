@@ -145,6 +145,9 @@ pub struct LoopStep {
     /// Slit ridge vertices coloured red this step (ours, [`super::slit`]; 0 when none).
     /// `red_vertices` includes them.
     pub slit_red: usize,
+    /// Paths whose inside region this step is a winding region (ours,
+    /// [`crate::analysis::regions::RegionFinder::winding_region`]).
+    pub winding_paths: usize,
     /// Red vertices at the start of the step.
     pub red_vertices: usize,
     /// Red triangles at the start of the step.
@@ -435,6 +438,7 @@ impl Resolver {
             intersecting_pairs: a.segments.len(),
             regionless_red,
             slit_red,
+            winding_paths: a.winding_region_paths.len(),
             red_vertices: a.coloring.num_red_vertices(),
             red_triangles: a.coloring.num_red_triangles(),
             tanglements: a.tanglements.len(),
@@ -502,6 +506,7 @@ impl Resolver {
             intersecting_pairs: prev.map_or(0, |s| s.intersecting_pairs),
             regionless_red: 0,
             slit_red: 0,
+            winding_paths: 0,
             red_vertices: prev.map_or(0, |s| s.red_vertices),
             red_triangles: prev.map_or(0, |s| s.red_triangles),
             tanglements: prev.map_or(0, |s| s.tanglements),
