@@ -29,7 +29,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     // CHAKO_ONLY=<name>: one garment; CHAKO_STALLS=1: print the last stalls of a run;
     // CHAKO_KINDS=1: the path kinds (and their inside-region sizes) before and after;
-    // CHAKO_WRITE=<dir>: the tangled garment as <dir>/<name>_tangled.obj;
+    // CHAKO_WRITE=<dir>: the tangled garment as <dir>/<name>_tangled.obj.
     let only = std::env::var("CHAKO_ONLY").ok();
     // CHAKO_GARMENTS=a,b,...: other ARCSim meshes (e.g. dress4,jacket,sleeve).
     let list = std::env::var("CHAKO_GARMENTS").unwrap_or_else(|_| "tshirt,dress3,pants3".into());

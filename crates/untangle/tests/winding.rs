@@ -6,7 +6,7 @@ mod common;
 
 use common::*;
 use rand::{Rng, SeedableRng};
-use untangle::analysis::winding::{at_vertex, at_vertices, solid_angle};
+use untangle::analysis::winding::{at_vertex, solid_angle, Tree};
 use untangle::analysis::{analyze_with, AnalysisMesh, ObjectKind, Options, Region};
 use untangle::geom::Vec3;
 use untangle::implicit::shapes::{cylinder_mesh, sphere_mesh};
@@ -93,17 +93,15 @@ fn closed_sphere_has_winding_one_inside_zero_outside_and_a_half_on_it() {
     }
 }
 
+/// The hierarchy's batch evaluation (what the analysis calls) gives the same bits with one and
+/// two threads.
 #[test]
 fn winding_numbers_do_not_depend_on_the_threads() {
     let m = sphere_mesh("s", &Vec3::zeros(), 1.0, 16);
     let vs: Vec<u32> = (0..m.positions.len() as u32).collect();
-    let range = 0..m.triangles.len() as u32;
-    let one = with_threads(1, || {
-        at_vertices(&vs, &m.positions, &m.triangles, range.clone())
-    });
-    let two = with_threads(2, || {
-        at_vertices(&vs, &m.positions, &m.triangles, range.clone())
-    });
+    let tree = Tree::new(&m.positions, &m.triangles, 0..m.triangles.len() as u32);
+    let one = with_threads(1, || tree.at_vertices(&vs, &m.positions, &m.triangles));
+    let two = with_threads(2, || tree.at_vertices(&vs, &m.positions, &m.triangles));
     assert_eq!(
         one.iter().map(|w| w.to_bits()).collect::<Vec<_>>(),
         two.iter().map(|w| w.to_bits()).collect::<Vec<_>>()
@@ -224,7 +222,6 @@ fn sheets_get_no_winding_region() {
 /// regions' thresholds of 0.4-0.6).
 #[test]
 fn tree_matches_the_direct_sum() {
-    use untangle::analysis::winding::Tree;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
     let (tubes, _) = overlapping_tubes(0.85);
     let mut sphere = sphere_mesh("s", &Vec3::zeros(), 1.0, 20);

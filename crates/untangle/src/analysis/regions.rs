@@ -23,7 +23,7 @@ pub struct RegionFinder<'a> {
     dist: Vec<f64>,
     /// The two flood queues (kept for their capacity).
     queues: [Vec<u32>; 2],
-    /// Winding numbers computed so far ([`RegionFinder::bli_winding`]; NaN: not yet; empty
+    /// Winding numbers computed so far ([`RegionFinder::winding_region`]; NaN: not yet; empty
     /// until first needed). Positions are fixed for a finder's life, so they stay valid.
     winding: Vec<f64>,
     /// Each object's reference winding number (median of a vertex sample), once computed.

@@ -53,19 +53,6 @@ pub fn at_vertex(v: u32, pos: &[Vec3], tris: &[[u32; 3]], range: Range<u32>) -> 
     sum / (4.0 * std::f64::consts::PI)
 }
 
-/// [`at_vertex`] for each of `vertices` (in parallel; the values do not depend on the threads).
-pub fn at_vertices(
-    vertices: &[u32],
-    pos: &[Vec3],
-    tris: &[[u32; 3]],
-    range: Range<u32>,
-) -> Vec<f64> {
-    vertices
-        .par_iter()
-        .map(|&v| at_vertex(v, pos, tris, range.clone()))
-        .collect()
-}
-
 /// A cluster hierarchy over a range of triangles for fast winding numbers (Barill et al. 2018,
 /// Sec. 3, first order): each node keeps the sum of its triangles' area vectors (`n`, half the
 /// cross product of two edges), their area-weighted centre and the radius of a ball around that
