@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use untangle::analysis::winding::{at_vertex, solid_angle, Tree};
 use untangle::analysis::{analyze_with, AnalysisMesh, ObjectKind, Options, Region};
 use untangle::geom::Vec3;
-use untangle::implicit::shapes::{cylinder_mesh, sphere_mesh};
+use untangle::implicit::shapes::sphere_mesh;
 use untangle::mesh::Mesh;
 
 /// The solid angle of a triangle by L'Huilier's theorem (the spherical excess of the corners'
@@ -108,23 +108,14 @@ fn winding_numbers_do_not_depend_on_the_threads() {
     );
 }
 
-/// Two long open tubes (radius 1, axes along z at x = -d and x = +d, d < 1) in one mesh: each
-/// tube's wall between the two intersection lines lies inside the other tube. Neither line
-/// separates a tube (no Wicke region); the winding regions must be exactly the vertices inside
-/// the other tube, away from the open ends (where an open tube's winding number fades).
+/// Two long open tubes (`scenes::garment::overlapping_tubes`: radius 1, length 8, axes along z
+/// at x = -d and x = +d, d < 1) in one mesh: each tube's wall between the two intersection lines
+/// lies inside the other tube. Neither line separates a tube (no Wicke region); the winding
+/// regions must be exactly the vertices inside the other tube, away from the open ends (where an
+/// open tube's winding number fades).
 fn overlapping_tubes(d: f64) -> (Mesh, f64) {
-    let h = 8.0;
-    let a = cylinder_mesh("a", 1.0, h, 48, 64, false);
-    let n = a.positions.len() as u32;
-    let mut pos: Vec<Vec3> = a
-        .positions
-        .iter()
-        .map(|p| p - Vec3::new(d, 0.0, 0.0))
-        .collect();
-    pos.extend(a.positions.iter().map(|p| p + Vec3::new(d, 0.0, 0.0)));
-    let mut tris = a.triangles.clone();
-    tris.extend(a.triangles.iter().map(|t| t.map(|v| v + n)));
-    (Mesh::new("tubes", pos, tris).unwrap(), h)
+    let scene = untangle::scenes::garment::overlapping_tubes(48, d);
+    (scene.meshes[0].clone(), 8.0)
 }
 
 #[test]
@@ -139,7 +130,11 @@ fn winding_regions_of_overlapping_tubes_are_the_walls_inside_the_other_tube() {
         };
         let a = analyze_with(&am, &pos, &with).unwrap();
         let plain = analyze_with(&am, &pos, &Options::default()).unwrap();
-        assert!(!a.paths.is_empty());
+        assert_eq!(
+            kinds(&a),
+            vec![("BIBI".to_string(), 2)],
+            "the scene's known kinds"
+        );
         // Without the option no path has a region; with it, the regions are winding regions.
         assert!(plain
             .regions

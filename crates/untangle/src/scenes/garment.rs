@@ -106,3 +106,27 @@ pub fn skirt(n: usize, dents: usize) -> Scene {
         expected: vec![("CLOSED", dents)],
     }
 }
+
+/// Two long open tubes (radius 1, length 8, `n` segments around and `2 n` rings along, axes
+/// along z at `x = -offset` and `x = +offset`, `offset < 1`) in one mesh: each tube's wall
+/// between the two intersection lines lies inside the other tube, like a leg passed into the
+/// other leg. The analysis finds two BIBI tanglements (four BI paths, each from an open end to
+/// where the other tube's rim pierces the wall); no path separates a tube, so Wicke's rules
+/// give no inside region;
+/// the known answer is geometric: the cloth inside the other tube, which the analysis's winding
+/// regions ([`crate::analysis::regions::RegionFinder::winding_region`]) must find.
+pub fn overlapping_tubes(n: usize, offset: f64) -> Scene {
+    let n = n.max(8);
+    let tube = crate::implicit::shapes::cylinder_mesh("tube", 1.0, 8.0, n, 2 * n, false);
+    let count = tube.positions.len() as u32;
+    let shift = Vec3::new(offset, 0.0, 0.0);
+    let mut pos: Vec<Vec3> = tube.positions.iter().map(|p| p - shift).collect();
+    pos.extend(tube.positions.iter().map(|p| p + shift));
+    let mut tris = tube.triangles.clone();
+    tris.extend(tube.triangles.iter().map(|t| t.map(|v| v + count)));
+    Scene {
+        name: "tubes".into(),
+        meshes: vec![Mesh::new("tubes", pos, tris).expect("two valid tubes")],
+        expected: vec![("BIBI", 2)],
+    }
+}

@@ -40,6 +40,7 @@ pub const NAMES: &[&str] = &[
     "bli-interior",
     "exploded",
     "folded",
+    "tubes",
 ];
 
 /// Builds a scene by name; `size` is the handkerchief resolution (cells per side, `None` for the
@@ -48,7 +49,8 @@ pub const NAMES: &[&str] = &[
 /// For the loop-vertex cores (`ll`, `eight`, `cross`, `bli`, `bli-interior`) `size` is the
 /// number of subdivision levels (default 2); for `folded` it is the cells per side (default 125: 31,250 triangles, 4
 /// dents); for `exploded` the cells per side (default 14) and `seed` the random draw; for `skirt`
-/// the cells around each panel (default 40, 3 dents).
+/// the cells around each panel (default 40, 3 dents); for `tubes` the segments around each tube
+/// (default 32; offset 0.85).
 pub fn by_name(name: &str, size: Option<usize>, seed: u64) -> Option<Scene> {
     Some(match name {
         "closed" => closed(size.unwrap_or(16)),
@@ -62,6 +64,7 @@ pub fn by_name(name: &str, size: Option<usize>, seed: u64) -> Option<Scene> {
         "exploded" => exploded::exploded(seed, size.unwrap_or(14)),
         "folded" => folded::folded(size.unwrap_or(125), 4),
         "skirt" => garment::skirt(size.unwrap_or(40), 3),
+        "tubes" => garment::overlapping_tubes(size.unwrap_or(32), 0.85),
         _ => return None,
     })
 }
