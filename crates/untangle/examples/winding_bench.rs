@@ -1,6 +1,8 @@
 //! Benchmark of the generalized winding numbers behind the analysis's winding regions
 //! (`analysis::winding`): the cluster hierarchy's build time, its evaluation time per vertex,
-//! the direct sum's, and the largest difference between the two over every vertex.
+//! the direct sum's, and the largest difference between the two over every vertex; then how many
+//! vertices have a winding number in each bin of 0.1 (the contrast the regions rely on: about
+//! 1/2 on a garment's surface, about 1.5 where its cloth lies inside another of its tubes).
 //!
 //! ```text
 //! cargo run --release -p untangle --example winding_bench -- [MESH.obj] [runs]
@@ -64,4 +66,19 @@ fn main() {
         direct_ms * 1e3 / n,
         worst
     );
+    let mut bins = std::collections::BTreeMap::<i64, usize>::new();
+    for w in &tree_values {
+        *bins.entry((w * 10.0).floor() as i64).or_default() += 1;
+    }
+    let line: Vec<String> = bins
+        .iter()
+        .map(|(b, n)| {
+            format!(
+                "[{:.1}, {:.1}): {n}",
+                *b as f64 / 10.0,
+                (*b + 1) as f64 / 10.0
+            )
+        })
+        .collect();
+    println!("winding numbers: {}", line.join(", "));
 }
