@@ -55,6 +55,7 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         body_thickness: 0.0,
         pinned: &[],
         frames: None,
+        output_last: false,
     };
     // As `untangle fix` by default: no gravity, the cloth untangles where it is.
     let mut params = ResolveParams::default();

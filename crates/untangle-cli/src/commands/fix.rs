@@ -9,6 +9,7 @@
 //! cloth-body with `--body`), 1 when the run stopped (step limit, or stuck) with tanglements left
 //! (the JSON report's `final_analysis` says where and of what kind), 2 on error.
 
+use super::fewest::Fewest;
 use super::simulate::{body_at, load_body, pin_spec, Body, Placement};
 use crate::output::{check_output, Context};
 use anyhow::{bail, Context as _, Result};
@@ -58,6 +59,11 @@ pub struct Args {
     /// frame k the state after step k.
     #[arg(long)]
     pub frames: Option<PathBuf>,
+    /// When the run ends with tanglements left, write its last state (by default the state
+    /// with the fewest intersecting pairs is written, the input if no state had fewer; not
+    /// with an animated body, which always gets the last state).
+    #[arg(long)]
+    pub output_last: bool,
     /// Steps between written frames (the last state is always written).
     #[arg(long, default_value_t = 1)]
     pub frame_every: usize,
@@ -271,6 +277,9 @@ pub struct Setup<'a> {
     pub pinned: &'a [u32],
     /// Frame directory and steps between frames.
     pub frames: Option<(&'a Path, usize)>,
+    /// Write the last state even when an earlier one had fewer intersecting pairs
+    /// ([`super::fewest`]).
+    pub output_last: bool,
 }
 
 /// Friction of the body in `fix` (as in `simulate`).
@@ -283,6 +292,12 @@ impl Setup<'_> {
             bail!("--body-frame-steps must be at least 1");
         }
         Ok(())
+    }
+
+    /// Whether a stuck run may write its fewest-pair state instead of its last
+    /// ([`super::fewest`]): not asked otherwise, and no animated body.
+    pub fn keeps_fewest(&self) -> bool {
+        !self.output_last && self.body.is_none_or(|b| b.frames.len() <= 1)
     }
 
     /// Steps over which an animated body plays (0 for a static one or none).
@@ -318,6 +333,9 @@ impl Setup<'_> {
 pub struct FixRun {
     /// The loop's summary.
     pub summary: ResolveSummary,
+    /// `Some` when an earlier state with fewer intersecting pairs is the output instead of
+    /// the last ([`super::fewest`]); `final_pos` and `final_analysis` are then that state's.
+    pub output_state: Option<OutputState>,
     /// Plain simulator steps run after the loop resolved, to play the rest of an animated body.
     pub body_tail_steps: usize,
     /// Every step.
@@ -338,6 +356,39 @@ pub struct FixRun {
     pub initial_pos: Vec<Vec3>,
     /// The JSON report.
     pub report: serde_json::Value,
+}
+
+/// An earlier state written instead of the last ([`super::fewest`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OutputState {
+    /// Steps run before it (0 = the input).
+    pub after_steps: usize,
+    /// Intersecting triangle pairs of the last state.
+    pub last_pairs: usize,
+}
+
+/// The report's `output_state`: which state the output is.
+pub(crate) fn output_state_json(s: Option<&OutputState>, steps: usize) -> serde_json::Value {
+    match s {
+        Some(s) => serde_json::json!({
+            "written": "fewest_pairs",
+            "after_steps": s.after_steps,
+            "last_state_intersecting_pairs": s.last_pairs,
+        }),
+        None => serde_json::json!({ "written": "last", "after_steps": steps }),
+    }
+}
+
+/// The summary line of an earlier state written instead of the last.
+pub(crate) fn output_state_line(s: &OutputState, pairs: usize) -> String {
+    let state = match s.after_steps {
+        0 => "the input (no later state had fewer intersecting pairs)".to_string(),
+        k => format!("the state after step {k}, the fewest intersecting pairs of the run"),
+    };
+    format!(
+        "  written: {state} ({pairs}; the last state had {}, --output-last writes it)",
+        s.last_pairs
+    )
 }
 
 impl FixRun {
@@ -366,8 +417,13 @@ impl<'a> Scene<'a> {
 
     /// The analysis of the simulator's cloth (and its body at the start of the next step).
     pub(crate) fn analyse(&mut self, sim: &Simulator) -> Result<Analysis> {
-        let n = sim.positions().len();
-        self.pos[..n].copy_from_slice(sim.positions());
+        self.analyse_cloth(sim.positions(), sim)
+    }
+
+    /// The analysis of the cloth at `cloth` with `sim`'s body (at the start of its next step).
+    pub(crate) fn analyse_cloth(&mut self, cloth: &[Vec3], sim: &Simulator) -> Result<Analysis> {
+        let n = cloth.len();
+        self.pos[..n].copy_from_slice(cloth);
         if self.pos.len() > n {
             self.pos[n..].copy_from_slice(&sim.obstacles().start);
         }
@@ -416,6 +472,7 @@ pub fn untangle(
         "untangle fix: input",
         (initial_red, "red resolved"),
     )?;
+    let mut fewest = Fewest::new(setup.keeps_fewest());
     let outcome = loop {
         if let Some(o) = resolver.stop_reason() {
             break o;
@@ -426,7 +483,9 @@ pub fn untangle(
                 .simulator_mut()
                 .set_obstacle_next_positions(0, &next)?;
         }
+        let before = fewest.before_step(resolver.simulator().positions());
         let (rec, _) = resolver.step().context("cha-ko step")?;
+        fewest.offer(rec.step as usize, rec.intersecting_pairs, before);
         pb.set_position(initial_red.saturating_sub(rec.red_vertices as u64));
         pb.set_message(format!(
             "step {}/{max_steps}: {} red, {} pairs",
@@ -460,10 +519,29 @@ pub fn untangle(
     };
     let body_tail_steps = tail.as_ref().map_or(0, |t| t.1);
     let final_sim = tail.as_ref().map_or(resolver.simulator(), |t| &t.0);
-    let final_analysis = scene.analyse(final_sim)?;
+    let mut final_analysis = scene.analyse(final_sim)?;
+    let last_pairs = final_analysis.segments.len();
+    let mut output_state = None;
+    // A run that resolved the cloth keeps its last state (body pairs may be left).
+    if let Some(b) = fewest
+        .better_than(last_pairs)
+        .filter(|_| outcome != Outcome::Resolved)
+    {
+        let a = scene.analyse_cloth(&b.positions, final_sim)?;
+        if a.segments.len() < last_pairs {
+            final_analysis = a;
+            output_state = Some(OutputState {
+                after_steps: b.after_steps,
+                last_pairs,
+            });
+        } else {
+            scene.analyse(final_sim)?;
+        }
+    }
     let final_pos = scene.pos.clone();
     let mut out_mesh = garment.mesh.clone();
-    out_mesh.positions = final_sim.positions().to_vec();
+    let n = out_mesh.positions.len();
+    out_mesh.positions = final_pos[..n].to_vec();
     let history = resolver.history().to_vec();
     let final_report = Report::new(&scene.am, &final_pos, &final_analysis);
     let final_json: serde_json::Value = serde_json::from_str(&final_report.to_json())?;
@@ -478,6 +556,7 @@ pub fn untangle(
         "outcome": summary.outcome,
         "output_intersection_free": final_analysis.is_clean(),
         "output_intersecting_pairs": final_analysis.segments.len(),
+        "output_state": output_state_json(output_state.as_ref(), history.len()),
         "input_body_intersecting_pairs": input_body_pairs,
         "summary": summary,
         "body_tail_steps": body_tail_steps,
@@ -488,6 +567,7 @@ pub fn untangle(
     });
     Ok(FixRun {
         summary,
+        output_state,
         body_tail_steps,
         history,
         out_mesh,
@@ -748,6 +828,7 @@ pub fn run(args: Args, ctx: &Context) -> Result<u8> {
         body_thickness: args.body_thickness,
         pinned: &pinned,
         frames: args.frames.as_deref().map(|d| (d, args.frame_every)),
+        output_last: args.output_last,
     };
     match args.method {
         Method::Wicke | Method::Combined => {
@@ -833,6 +914,9 @@ pub fn text_summary(fix: &FixRun) -> String {
             "  left: {} (locations in the JSON report)",
             kinds.join(", ")
         );
+        if let Some(o) = &fix.output_state {
+            let _ = writeln!(t, "{}", output_state_line(o, fa.segments.len()));
+        }
         if fix.input_body_pairs > 0 {
             let _ = writeln!(
                 t,

@@ -5,7 +5,11 @@
 //! inputs, outputs and exit codes (0: the output is free of intersections by the analysis, 1:
 //! the run stopped with tanglements left, 2: error).
 
-use super::fix::{begin, write_frame, Args, Method, Scene, Setup};
+use super::fewest::Fewest;
+use super::fix::{
+    begin, output_state_json, output_state_line, write_frame, Args, Method, OutputState, Scene,
+    Setup,
+};
 use crate::output::Context;
 use anyhow::{Context as _, Result};
 use untangle::analysis::report::Report;
@@ -215,6 +219,7 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
         (initial_pairs, "pairs resolved"),
     )?;
     let mut steps_json = Vec::new();
+    let mut fewest = Fewest::new(setup.keeps_fewest());
     loop {
         let k = steps_json.len();
         if let Some(next) = setup.animated_body_at(k + 1) {
@@ -228,9 +233,11 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
                 _ => {}
             }
         }
+        let before = fewest.before_step(runner.positions());
         let Some((pairs, json)) = runner.step(k)? else {
             break;
         };
+        fewest.offer(k, pairs, before);
         steps_json.push(json);
         pb.set_position(initial_pairs.saturating_sub(pairs as u64));
         pb.set_message(format!("step {}/{max_steps}: {pairs} pairs", k + 1));
@@ -263,12 +270,10 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
         None
     };
     let body_tail_steps = tail.as_ref().map_or(0, |t| t.1);
-    let final_analysis = match &tail {
+    let mut final_analysis = match &tail {
         Some((sim, _)) => scene.analyse(sim)?,
         None => analyse(&mut scene, &runner)?,
     };
-    let final_pos = scene.pos.clone();
-    let clean = final_analysis.is_clean();
     let steps = steps_json.len();
     if let (Some((dir, every)), None) = (setup.frames, &tail) {
         if steps % every.max(1) != 0 || steps == 0 {
@@ -279,6 +284,29 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
             write_frame(dir, steps, &text)?;
         }
     }
+    let last_pairs = final_analysis.segments.len();
+    let mut output_state = None;
+    // A run that resolved the cloth keeps its last state (body pairs may be left).
+    if let Some(b) = fewest
+        .better_than(last_pairs)
+        .filter(|_| !runner.resolved())
+    {
+        let last_pos = scene.pos.clone();
+        scene.pos[..b.positions.len()].copy_from_slice(&b.positions);
+        let a =
+            untangle::analysis::analyze(&scene.am, &scene.pos).context("intersection analysis")?;
+        if a.segments.len() < last_pairs {
+            final_analysis = a;
+            output_state = Some(OutputState {
+                after_steps: b.after_steps,
+                last_pairs,
+            });
+        } else {
+            scene.pos = last_pos;
+        }
+    }
+    let final_pos = scene.pos.clone();
+    let clean = final_analysis.is_clean();
     let mut out_mesh = garment.mesh.clone();
     out_mesh.positions = final_pos[..garment.mesh.positions.len()].to_vec();
     obj::write_obj(
@@ -330,6 +358,7 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
             })),
             "output_intersection_free": clean,
             "output_intersecting_pairs": final_analysis.segments.len(),
+            "output_state": output_state_json(output_state.as_ref(), steps),
             "input_intersecting_pairs": initial.segments.len(),
             "input_body_intersecting_pairs": input_body_pairs,
             "timing_ms": { "total": total_ms },
@@ -374,6 +403,9 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
                 final_analysis.tanglements.len(),
                 kinds.join(", ")
             );
+            if let Some(o) = &output_state {
+                println!("{}", output_state_line(o, final_analysis.segments.len()));
+            }
         }
         println!(
             "time: {:.2} s ({:.2} ms/step)",

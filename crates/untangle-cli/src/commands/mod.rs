@@ -2,6 +2,7 @@
 
 pub mod check;
 pub mod demo;
+pub mod fewest;
 pub mod fix;
 pub mod fix_wicke;
 pub mod layers;
