@@ -379,6 +379,35 @@ pub(crate) fn output_state_json(s: Option<&OutputState>, steps: usize) -> serde_
     }
 }
 
+/// Which state a run writes ([`super::fewest`]): `scene.pos` holds the last state, analysed
+/// in `final_analysis`. Unless the run resolved the cloth (body pairs may be left), the
+/// fewest-pair state replaces both when it has fewer intersecting pairs; its description, or
+/// `None` when the last state stays.
+pub(crate) fn choose_output(
+    scene: &mut Scene,
+    fewest: &Fewest,
+    resolved: bool,
+    final_analysis: &mut Analysis,
+) -> Result<Option<OutputState>> {
+    let last_pairs = final_analysis.segments.len();
+    let Some(b) = fewest.better_than(last_pairs).filter(|_| !resolved) else {
+        return Ok(None);
+    };
+    let last_pos = scene.pos.clone();
+    scene.pos[..b.positions.len()].copy_from_slice(&b.positions);
+    let a = analysis::analyze(&scene.am, &scene.pos).context("intersection analysis")?;
+    if a.segments.len() < last_pairs {
+        *final_analysis = a;
+        Ok(Some(OutputState {
+            after_steps: b.after_steps,
+            last_pairs,
+        }))
+    } else {
+        scene.pos = last_pos;
+        Ok(None)
+    }
+}
+
 /// The summary line of an earlier state written instead of the last.
 pub(crate) fn output_state_line(s: &OutputState, pairs: usize) -> String {
     let state = match s.after_steps {
@@ -417,13 +446,8 @@ impl<'a> Scene<'a> {
 
     /// The analysis of the simulator's cloth (and its body at the start of the next step).
     pub(crate) fn analyse(&mut self, sim: &Simulator) -> Result<Analysis> {
-        self.analyse_cloth(sim.positions(), sim)
-    }
-
-    /// The analysis of the cloth at `cloth` with `sim`'s body (at the start of its next step).
-    pub(crate) fn analyse_cloth(&mut self, cloth: &[Vec3], sim: &Simulator) -> Result<Analysis> {
-        let n = cloth.len();
-        self.pos[..n].copy_from_slice(cloth);
+        let n = sim.positions().len();
+        self.pos[..n].copy_from_slice(sim.positions());
         if self.pos.len() > n {
             self.pos[n..].copy_from_slice(&sim.obstacles().start);
         }
@@ -520,24 +544,12 @@ pub fn untangle(
     let body_tail_steps = tail.as_ref().map_or(0, |t| t.1);
     let final_sim = tail.as_ref().map_or(resolver.simulator(), |t| &t.0);
     let mut final_analysis = scene.analyse(final_sim)?;
-    let last_pairs = final_analysis.segments.len();
-    let mut output_state = None;
-    // A run that resolved the cloth keeps its last state (body pairs may be left).
-    if let Some(b) = fewest
-        .better_than(last_pairs)
-        .filter(|_| outcome != Outcome::Resolved)
-    {
-        let a = scene.analyse_cloth(&b.positions, final_sim)?;
-        if a.segments.len() < last_pairs {
-            final_analysis = a;
-            output_state = Some(OutputState {
-                after_steps: b.after_steps,
-                last_pairs,
-            });
-        } else {
-            scene.analyse(final_sim)?;
-        }
-    }
+    let output_state = choose_output(
+        &mut scene,
+        &fewest,
+        outcome == Outcome::Resolved,
+        &mut final_analysis,
+    )?;
     let final_pos = scene.pos.clone();
     let mut out_mesh = garment.mesh.clone();
     let n = out_mesh.positions.len();

@@ -7,7 +7,7 @@
 
 use super::fewest::Fewest;
 use super::fix::{
-    begin, output_state_json, output_state_line, write_frame, Args, Method, OutputState, Scene,
+    begin, choose_output, output_state_json, output_state_line, write_frame, Args, Method, Scene,
     Setup,
 };
 use crate::output::Context;
@@ -284,27 +284,7 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
             write_frame(dir, steps, &text)?;
         }
     }
-    let last_pairs = final_analysis.segments.len();
-    let mut output_state = None;
-    // A run that resolved the cloth keeps its last state (body pairs may be left).
-    if let Some(b) = fewest
-        .better_than(last_pairs)
-        .filter(|_| !runner.resolved())
-    {
-        let last_pos = scene.pos.clone();
-        scene.pos[..b.positions.len()].copy_from_slice(&b.positions);
-        let a =
-            untangle::analysis::analyze(&scene.am, &scene.pos).context("intersection analysis")?;
-        if a.segments.len() < last_pairs {
-            final_analysis = a;
-            output_state = Some(OutputState {
-                after_steps: b.after_steps,
-                last_pairs,
-            });
-        } else {
-            scene.pos = last_pos;
-        }
-    }
+    let output_state = choose_output(&mut scene, &fewest, runner.resolved(), &mut final_analysis)?;
     let final_pos = scene.pos.clone();
     let clean = final_analysis.is_clean();
     let mut out_mesh = garment.mesh.clone();
