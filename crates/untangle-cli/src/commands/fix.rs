@@ -9,7 +9,6 @@
 //! cloth-body with `--body`), 1 when the run stopped (step limit, or stuck) with tanglements left
 //! (the JSON report's `final_analysis` says where and of what kind), 2 on error.
 
-use super::fewest::Fewest;
 use super::simulate::{body_at, load_body, pin_spec, Body, Placement};
 use crate::output::{check_output, Context};
 use anyhow::{bail, Context as _, Result};
@@ -20,6 +19,7 @@ use untangle::mesh::{obj, Garment, Mesh};
 use untangle::methods::cha_ko::{
     AdaptiveIntegrator, LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver,
 };
+use untangle::methods::fewest::Fewest;
 use untangle::sim::{Integrator, SimParams, Simulator, UniformThickness};
 
 /// Resolution methods.
@@ -278,7 +278,7 @@ pub struct Setup<'a> {
     /// Frame directory and steps between frames.
     pub frames: Option<(&'a Path, usize)>,
     /// Write the last state even when an earlier one had fewer intersecting pairs
-    /// ([`super::fewest`]).
+    /// ([`untangle::methods::fewest`]).
     pub output_last: bool,
 }
 
@@ -295,9 +295,9 @@ impl Setup<'_> {
     }
 
     /// Whether a stuck run may write its fewest-pair state instead of its last
-    /// ([`super::fewest`]): not asked otherwise, and no animated body.
+    /// ([`untangle::methods::fewest`]): not asked otherwise, and no animated body.
     pub fn keeps_fewest(&self) -> bool {
-        !self.output_last && self.body.is_none_or(|b| b.frames.len() <= 1)
+        !self.output_last && self.body_span() == 0
     }
 
     /// Steps over which an animated body plays (0 for a static one or none).
@@ -334,7 +334,7 @@ pub struct FixRun {
     /// The loop's summary.
     pub summary: ResolveSummary,
     /// `Some` when an earlier state with fewer intersecting pairs is the output instead of
-    /// the last ([`super::fewest`]); `final_pos` and `final_analysis` are then that state's.
+    /// the last ([`untangle::methods::fewest`]); `final_pos` and `final_analysis` are then that state's.
     pub output_state: Option<OutputState>,
     /// Plain simulator steps run after the loop resolved, to play the rest of an animated body.
     pub body_tail_steps: usize,
@@ -358,7 +358,7 @@ pub struct FixRun {
     pub report: serde_json::Value,
 }
 
-/// An earlier state written instead of the last ([`super::fewest`]).
+/// An earlier state written instead of the last ([`untangle::methods::fewest`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OutputState {
     /// Steps run before it (0 = the input).
@@ -379,7 +379,7 @@ pub(crate) fn output_state_json(s: Option<&OutputState>, steps: usize) -> serde_
     }
 }
 
-/// Which state a run writes ([`super::fewest`]): `scene.pos` holds the last state, analysed
+/// Which state a run writes ([`untangle::methods::fewest`]): `scene.pos` holds the last state, analysed
 /// in `final_analysis`. Unless the run resolved the cloth (body pairs may be left), the
 /// fewest-pair state replaces both when it has fewer intersecting pairs; its description, or
 /// `None` when the last state stays.

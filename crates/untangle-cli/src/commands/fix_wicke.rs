@@ -5,7 +5,6 @@
 //! inputs, outputs and exit codes (0: the output is free of intersections by the analysis, 1:
 //! the run stopped with tanglements left, 2: error).
 
-use super::fewest::Fewest;
 use super::fix::{
     begin, choose_output, output_state_json, output_state_line, write_frame, Args, Method, Scene,
     Setup,
@@ -19,6 +18,7 @@ use untangle::mesh::{obj, Garment};
 use untangle::methods::combined::{
     CombinedOutcome, CombinedParams, CombinedResolver, CombinedStep,
 };
+use untangle::methods::fewest::Fewest;
 use untangle::methods::wicke::{WickeOutcome, WickeParams, WickeResolver, WickeStep};
 use untangle::sim::Simulator;
 

@@ -2,7 +2,6 @@
 
 pub mod check;
 pub mod demo;
-pub mod fewest;
 pub mod fix;
 pub mod fix_wicke;
 pub mod layers;

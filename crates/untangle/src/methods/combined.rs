@@ -34,6 +34,7 @@
 //! state: those were taken with the body elsewhere, and the cloth cannot go back in time.
 
 use super::cha_ko::{LoopStep, Outcome, ResolveParams, Resolver};
+use super::fewest::Fewest;
 use super::wicke::{WickeParams, WickeResolver, WickeStep};
 use crate::analysis::AnalysisMesh;
 use crate::error::Result;
@@ -147,16 +148,6 @@ enum Active {
     Done(CombinedOutcome, Vec<Vec3>),
 }
 
-/// The pre-pass's best state so far.
-struct Best {
-    /// Fewest intersecting pairs seen at the start of a pre-pass step.
-    pairs: usize,
-    /// The positions with them.
-    positions: Vec<Vec3>,
-    /// Pre-pass steps since.
-    since: usize,
-}
-
 /// The combined loop over one garment.
 pub struct CombinedResolver {
     garment: Garment,
@@ -166,7 +157,10 @@ pub struct CombinedResolver {
     obstacles: Vec<Obstacle>,
     active: Active,
     history: Vec<CombinedStep>,
-    best: Best,
+    /// The pre-pass's fewest-pair state (pairs seen at the start of a pre-pass step).
+    best: Fewest,
+    /// Pre-pass steps since `best` last changed.
+    since_best: usize,
     /// Intersecting pairs of the input (seen at the pre-pass's first step).
     input_pairs: Option<usize>,
     /// Cha & Ko + finish rounds started.
@@ -207,11 +201,8 @@ impl CombinedResolver {
             obstacles: Vec::new(),
             active,
             history: Vec::new(),
-            best: Best {
-                pairs: usize::MAX,
-                positions: Vec::new(),
-                since: 0,
-            },
+            best: Fewest::new(true),
+            since_best: 0,
             input_pairs: None,
             rounds: 1,
             from_prepass: false,
@@ -341,14 +332,14 @@ impl CombinedResolver {
             let pos = self.positions().to_vec();
             return self.start_cha_ko(&pos);
         }
+        let best_pairs = self.best.best().map_or(usize::MAX, |b| b.pairs);
         let keep = self
             .input_pairs
-            .is_some_and(|n| (self.best.pairs as f64) <= self.params.prepass_keep_below * n as f64);
+            .is_some_and(|n| (best_pairs as f64) <= self.params.prepass_keep_below * n as f64);
         self.from_prepass = keep;
-        let from = if keep {
-            std::mem::take(&mut self.best.positions)
-        } else {
-            self.garment.mesh.positions.clone()
+        let from = match self.best.take() {
+            Some(b) if keep => b.positions,
+            _ => self.garment.mesh.positions.clone(),
         };
         self.start_cha_ko(&from)
     }
@@ -418,7 +409,7 @@ impl CombinedResolver {
                         }
                         continue;
                     }
-                    if stage == Stage::Prepass && self.best.since >= self.params.prepass_patience {
+                    if stage == Stage::Prepass && self.since_best >= self.params.prepass_patience {
                         self.end_prepass()?;
                         continue;
                     }
@@ -426,16 +417,13 @@ impl CombinedResolver {
                     let before =
                         (stage == Stage::Prepass).then(|| w.simulator().positions().to_vec());
                     let (s, stepped) = w.step()?;
-                    if let Some(pos) = before {
+                    if before.is_some() {
                         self.input_pairs.get_or_insert(s.intersecting_pairs);
-                        if s.intersecting_pairs < self.best.pairs {
-                            self.best = Best {
-                                pairs: s.intersecting_pairs,
-                                positions: pos,
-                                since: 0,
-                            };
+                        let k = self.history.len();
+                        if self.best.offer(k, s.intersecting_pairs, before) {
+                            self.since_best = 0;
                         } else {
-                            self.best.since += 1;
+                            self.since_best += 1;
                         }
                     }
                     if stepped.is_none() {

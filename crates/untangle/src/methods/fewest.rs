@@ -1,16 +1,18 @@
-//! The state `fix` writes when a run ends with tanglements left (ours): the state with the
-//! fewest intersecting triangle pairs seen, not the last one.
+//! The state of a resolution loop with the fewest intersecting triangle pairs seen so far
+//! (ours). [`super::combined`] starts Cha & Ko from its pre-pass's; `untangle fix` writes it,
+//! not the last state, when a run ends with tanglements left.
 //!
 //! A run that gets stuck can end far worse than it began: on ARCSim's dress4 sagged 25 steps,
 //! Cha & Ko's pulls of a 231-vertex BLI region took the garment from 259 to 290 pairs, with a
 //! peak of 978, and crumpled it (BENCHMARKS.md, session 31). Handing that back would lose the
 //! user's garment. So the loop offers each state before its step, with that step's
-//! intersecting-pair count; the fewest-pair state (the first, on ties) is kept and written
-//! instead of the last state whenever it has fewer pairs. The input itself is a candidate, so
-//! `fix` never writes a state with more pairs than it read. `--output-last` writes the last
-//! state. Not used with an animated body: an earlier state fits an earlier body frame.
+//! intersecting-pair count; the fewest-pair state (the first, on ties) is kept, and `fix`
+//! writes it instead of the last state whenever it has fewer pairs. The input itself is a
+//! candidate, so `fix` never writes a state with more pairs than it read. `--output-last`
+//! writes the last state. Not used with an animated body: an earlier state fits an earlier
+//! body frame.
 
-use untangle::geom::Vec3;
+use crate::geom::Vec3;
 
 /// A candidate state.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,18 +49,35 @@ impl Fewest {
 
     /// Offers the state `positions` (from [`Fewest::before_step`]) taken after `after_steps`
     /// steps, with the pair count the next step found in it; kept if it has strictly fewer
-    /// pairs than the best so far.
-    pub fn offer(&mut self, after_steps: usize, pairs: usize, positions: Option<Vec<Vec3>>) {
+    /// pairs than the best so far. Whether it was kept (`false` for `None`).
+    pub fn offer(
+        &mut self,
+        after_steps: usize,
+        pairs: usize,
+        positions: Option<Vec<Vec3>>,
+    ) -> bool {
         let Some(positions) = positions else {
-            return;
+            return false;
         };
-        if self.best.as_ref().is_none_or(|b| pairs < b.pairs) {
+        let kept = self.best.as_ref().is_none_or(|b| pairs < b.pairs);
+        if kept {
             self.best = Some(State {
                 after_steps,
                 pairs,
                 positions,
             });
         }
+        kept
+    }
+
+    /// The kept state, if any.
+    pub fn best(&self) -> Option<&State> {
+        self.best.as_ref()
+    }
+
+    /// Takes the kept state out, leaving none.
+    pub fn take(&mut self) -> Option<State> {
+        self.best.take()
     }
 
     /// The kept state, if it has fewer pairs than `last_pairs` (the last state's count).
