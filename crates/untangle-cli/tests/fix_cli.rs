@@ -401,6 +401,19 @@ fn bad_input_is_one_line_exit_2_and_no_output() {
             ],
             "revoke_levels_per_step",
         ),
+        (
+            vec![
+                "fix",
+                "ex.obj",
+                "-o",
+                "o.obj",
+                "--method",
+                "cha-ko",
+                "--divergence-ratio",
+                "-3",
+            ],
+            "divergence ratio",
+        ),
     ];
     std::fs::create_dir(d.path().join("fr")).unwrap();
     std::fs::copy(d.path().join("ex.obj"), d.path().join("fr/frame_0000.obj")).unwrap();

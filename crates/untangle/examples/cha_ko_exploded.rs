@@ -40,6 +40,10 @@ fn main() {
     let mut monotone = 0;
     let mut independent_clean = 0;
     let mut total = 0;
+    // Steps in which the divergence guard saw a diverged simulator step, over all seeds.
+    let mut diverged_steps = 0;
+    // The largest step energy growth the guard saw (`DivergenceReport::growth`), and its seed.
+    let mut largest_growth = (0.0f64, 0u64);
     let t_all = Instant::now();
     for seed in first..=last {
         total += 1;
@@ -153,6 +157,16 @@ fn main() {
             diagnose(seed, &r, env("CHAKO_DIAG") == Some(2.0));
         }
         let wall = t.elapsed().as_secs_f64();
+        diverged_steps += r
+            .history()
+            .iter()
+            .filter(|s| s.divergence.diverged > 0)
+            .count();
+        for h in r.history() {
+            if h.divergence.growth > largest_growth.0 {
+                largest_growth = (h.divergence.growth, seed);
+            }
+        }
         let increases: Vec<(usize, usize, usize)> = reds
             .windows(2)
             .enumerate()
@@ -206,10 +220,12 @@ fn main() {
         median(input_stats.iter().map(|s| s.1).collect())
     );
     println!(
-        "seeds {first}-{last}, {cells}x{cells} cells: resolved {resolved}/{total}, final state clean by an independent analysis {independent_clean}/{total}, median steps (resolved) {median_steps}, red-vertex count monotone {monotone}/{total}, trial: steps retried {} retries {} accepted with increase {}, total wall {:.0} s",
+        "seeds {first}-{last}, {cells}x{cells} cells: resolved {resolved}/{total}, final state clean by an independent analysis {independent_clean}/{total}, median steps (resolved) {median_steps}, red-vertex count monotone {monotone}/{total}, trial: steps retried {} retries {} accepted with increase {}, steps with a diverged simulator step {diverged_steps} (largest step energy growth {:.2}x, seed {}), total wall {:.0} s",
         trial_total[0],
         trial_total[1],
         trial_total[2],
+        largest_growth.0,
+        largest_growth.1,
         t_all.elapsed().as_secs_f64()
     );
 }

@@ -25,8 +25,8 @@ use untangle::methods::cha_ko::{ResolveParams, Resolver};
 fn main() {
     use common::arg;
     let (min_vertices, tangle_steps, max_steps) = (arg(1, 2000), arg(2, 25), arg(3, 600));
-    println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s | max stretch (run / final) | final elastic / kinetic J | BW steps / switches |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| garment | vertices | triangles | pairs after tangling | BLI paths | outcome | steps | clean at | final pairs | ms/step (analysis / uv / sim) | wall s | max stretch (run / final) | final elastic / kinetic J | BW steps / switches | diverged steps / ops given up / largest step energy growth |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     // CHAKO_ONLY=<name>: one garment; CHAKO_STALLS=1: print the last stalls of a run;
     // CHAKO_KINDS=1: the path kinds (and their inside-region sizes) before and after;
     // CHAKO_WRITE=<dir>: the tangled garment as <dir>/<name>_tangled.obj.
@@ -117,8 +117,23 @@ fn main() {
             }
         });
         let wall = t.elapsed().as_secs_f64();
+        let diverged = r
+            .history()
+            .iter()
+            .filter(|s| s.divergence.diverged > 0)
+            .count();
+        let given_up: usize = r
+            .history()
+            .iter()
+            .map(|s| s.divergence.given_up.len())
+            .sum();
+        let growth = r
+            .history()
+            .iter()
+            .map(|s| s.divergence.growth)
+            .fold(0.0, f64::max);
         println!(
-            "| {name} | {} | {} | {} | {bli} | {:?} | {} | {} | {} | {:.1} / {:.2} / {:.1} | {:.1} | {:.3} / {:.3} | {:.3e} / {:.3e} | {} |",
+            "| {name} | {} | {} | {} | {bli} | {:?} | {} | {} | {} | {:.1} / {:.2} / {:.1} | {:.1} | {:.3} / {:.3} | {:.3e} / {:.3e} | {} | {diverged} / {given_up} / {growth:.2}x |",
             mesh.positions.len(),
             mesh.triangles.len(),
             a0.segments.len(),

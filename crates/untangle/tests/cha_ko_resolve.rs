@@ -7,7 +7,9 @@ mod common;
 use untangle::analysis::{analyze, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
-use untangle::methods::cha_ko::{Outcome, ResolveParams, Resolver, StallReason};
+use untangle::methods::cha_ko::{
+    DivergenceGuard, EndReason, Outcome, ResolveParams, Resolver, StallReason,
+};
 use untangle::sim::SimParams;
 
 fn params(max_steps: usize) -> ResolveParams {
@@ -52,6 +54,8 @@ fn resolves_with(g: &Garment, p: ResolveParams) -> untangle::methods::cha_ko::Re
         .iter()
         .all(|f| f.restored_step.is_some()));
     assert_eq!(s.analysis_errors, 0);
+    // The divergence guard never acts on these cases.
+    assert!(r.history().iter().all(|h| h.divergence.diverged == 0));
     s
 }
 
@@ -496,5 +500,72 @@ fn the_adaptive_loop_resolves_across_a_switch() {
         }
         assert_eq!(h[0].integrator, Integrator::Projective);
         resolves_with(&g, p);
+    }
+}
+
+/// The divergence guard's undo and give-up, forced with a ratio no step stays under and a share
+/// every operation reaches: the operations started in the first step are all given up and
+/// restored, and the step is run again from the same state with the original rest shape, so
+/// the cloth ends bit for bit where the loop without uv update takes it.
+#[test]
+fn a_diverged_step_is_undone_and_its_operations_given_up() {
+    let g = Garment::new(untangle::scenes::exploded::exploded(2, 10).meshes[0].clone()).unwrap();
+    let mut p = params(1);
+    p.divergence = Some(DivergenceGuard {
+        ratio: 1e-300,
+        share: 0.0,
+        rounds: 1,
+    });
+    let mut r = Resolver::new(&g, p).unwrap();
+    let (rec, _) = r.step().unwrap();
+    let started = rec.uv.pulls_started + rec.uv.shrinks_started;
+    assert!(started > 0);
+    // The first try and the retry both count as diverged; the retry has nothing to give up.
+    assert_eq!(rec.divergence.diverged, 2);
+    assert!(rec.divergence.kept_diverged);
+    assert_eq!(rec.divergence.given_up.len(), started);
+    assert_eq!(rec.uv.active_ops, 0);
+    assert!(r.chako().is_restored());
+    assert_eq!(r.chako().current_uv(), r.chako().original_uv());
+    assert_eq!(r.simulator().rest_uv(), r.chako().original_uv());
+    let log = r.chako().finesse_log();
+    assert_eq!(log.len(), started);
+    for f in log {
+        assert_eq!(
+            (f.end, f.restored_step),
+            (Some(EndReason::Diverged), Some(0))
+        );
+    }
+    let stalls = rec
+        .uv
+        .stalls
+        .iter()
+        .filter(|s| s.reason == StallReason::Diverged)
+        .count();
+    assert_eq!(stalls, started);
+    let mut q = params(1);
+    q.uv_update = false;
+    q.divergence = None;
+    let mut plain = Resolver::new(&g, q).unwrap();
+    plain.step().unwrap();
+    let bits = |x: &[Vec3]| format!("{x:?}");
+    assert_eq!(
+        bits(r.simulator().positions()),
+        bits(plain.simulator().positions())
+    );
+    assert_eq!(
+        bits(r.simulator().velocities()),
+        bits(plain.simulator().velocities())
+    );
+    // The next step does not take the barred pairs again at once: each given-up pull's
+    // subject-target pair stays unused.
+    let (rec2, _) = r.step().unwrap();
+    assert!(rec2.uv.blocked_tabu > 0, "{:?}", rec2.uv);
+    let log = r.chako().finesse_log();
+    for late in &log[started..] {
+        assert!(!log[..started].iter().any(|f| f.kind == late.kind
+            && f.subjects == late.subjects
+            && f.target == late.target
+            && f.triangle == late.triangle));
     }
 }

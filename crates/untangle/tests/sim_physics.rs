@@ -352,3 +352,49 @@ fn a_sheet_finer_than_its_thickness_hangs_as_without_thickness() {
         );
     }
 }
+
+/// `stretch_energies` and `kinetic_energy` give the energies the next step reports at its start
+/// (Baraff & Witkin's assembly sums them its own way), for the current positions and for
+/// positions passed in; wrong-length or non-finite positions are an error.
+#[test]
+fn per_triangle_stretch_energies_sum_to_the_reported_energy() {
+    let cloth = handkerchief("s", 6, 6, 0.4, 0.4, |p| Vec3::new(p.x, 1.0, p.y));
+    let g = Garment::new(cloth).unwrap();
+    let mut sim = Simulator::new(&g, SimParams::default()).unwrap();
+    sim.set_pinned(0, true).unwrap();
+    let policy = UniformThickness(1e-3);
+    for _ in 0..5 {
+        sim.step(&policy);
+    }
+    let x = sim.positions().to_vec();
+    let per: Vec<f64> = sim.stretch_energies(&x).unwrap();
+    assert_eq!(per.len(), g.mesh.triangles.len());
+    assert!(per.iter().all(|&e| e >= 0.0));
+    let (sum, kinetic) = (per.iter().sum::<f64>(), sim.kinetic_energy());
+    assert!(sum > 0.0 && kinetic > 0.0);
+    let r = sim.step(&policy);
+    assert!(
+        (sum - r.energy.stretch).abs() <= 1e-12 * sum,
+        "{sum} vs {}",
+        r.energy.stretch
+    );
+    assert!((kinetic - r.energy.kinetic).abs() <= 1e-12 * kinetic);
+    // Other positions: the flat input is at rest (zero stretch), a uniform 10 % stretch in the
+    // sheet's plane costs 0.5 k (0.1^2 + 0.1^2) per unit rest area, plus the shear of none.
+    let flat = sim.stretch_energies(&g.mesh.positions).unwrap();
+    assert!(flat.iter().all(|&e| e < 1e-20), "{flat:?}");
+    let centre = Vec3::new(0.0, 1.0, 0.0);
+    let big: Vec<Vec3> = g
+        .mesh
+        .positions
+        .iter()
+        .map(|p| centre + (p - centre) * 1.1)
+        .collect();
+    let e: f64 = sim.stretch_energies(&big).unwrap().iter().sum();
+    let k = SimParams::default().stretch_stiffness;
+    assert!((e - 0.5 * k * 0.02 * 0.16).abs() < 1e-9 * e, "{e}");
+    assert!(sim.stretch_energies(&x[1..]).is_err());
+    let mut bad = x.clone();
+    bad[3].y = f64::NAN;
+    assert!(sim.stretch_energies(&bad).is_err());
+}

@@ -17,7 +17,7 @@ use untangle::analysis::{self, report::Report, Analysis, AnalysisMesh, ObjectKin
 use untangle::geom::Vec3;
 use untangle::mesh::{obj, Garment, Mesh};
 use untangle::methods::cha_ko::{
-    AdaptiveIntegrator, LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver,
+    AdaptiveIntegrator, DivergenceGuard, LoopStep, Outcome, ResolveParams, ResolveSummary, Resolver,
 };
 use untangle::methods::fewest::Fewest;
 use untangle::sim::{Integrator, SimParams, Simulator, UniformThickness};
@@ -185,6 +185,11 @@ pub struct Args {
     /// 20 steps).
     #[arg(long, default_value_t = 0)]
     pub hold_progress: u32,
+    /// The divergence guard (ours): a simulator step whose stretch-plus-kinetic energy grows
+    /// more than this many times is undone, and the operations at the triangles that grew are
+    /// given up and restored (0: off; docs/cha-ko.md, "Divergence guard").
+    #[arg(long, allow_negative_numbers = true, default_value_t = untangle::methods::cha_ko::DivergenceGuard::default().ratio)]
+    pub divergence_ratio: f64,
     /// Visit out-most red vertices with the fewest out-most red neighbours first (ours; more
     /// pulls start side by side; default: by index).
     #[arg(long)]
@@ -246,6 +251,11 @@ impl Args {
         p.cha_ko.revoke_levels_when_clean = self.revoke_levels_when_clean;
         p.cha_ko.revoke_levels_finished = self.revoke_levels_finished;
         p.cha_ko.hold_progress_steps = self.hold_progress;
+        // Any value but 0 reaches the guard, which refuses what is not finite and positive.
+        p.divergence = (self.divergence_ratio != 0.0).then(|| DivergenceGuard {
+            ratio: self.divergence_ratio,
+            ..DivergenceGuard::default()
+        });
         if self.pull_fewest_neighbours_first {
             p.cha_ko.pull_order = untangle::methods::cha_ko::PullOrder::FewestOutmostNeighbours;
         }
@@ -768,6 +778,15 @@ fn integrator_line(history: &[LoopStep]) -> Option<String> {
     Some(line)
 }
 
+/// `n thing` or `n things`.
+fn plural(n: usize, thing: &str) -> String {
+    if n == 1 {
+        format!("1 {thing}")
+    } else {
+        format!("{n} {thing}s")
+    }
+}
+
 /// Milliseconds of one step: analysis, uv update, rest-shape update and simulation.
 pub fn step_ms(s: &LoopStep) -> f64 {
     s.ms_analysis + s.ms_uv + s.ms_rest + s.ms_sim
@@ -954,6 +973,37 @@ pub fn text_summary(fix: &FixRun) -> String {
         let _ = writeln!(
             t,
             "  winding regions (cloth inside another tube of the garment) coloured red in {winding_steps} steps"
+        );
+    }
+    let diverged: Vec<u64> = fix
+        .history
+        .iter()
+        .filter(|h| h.divergence.diverged > 0)
+        .map(|h| h.step)
+        .collect();
+    if !diverged.is_empty() {
+        let given_up: usize = fix
+            .history
+            .iter()
+            .map(|h| h.divergence.given_up.len())
+            .sum();
+        let kept = fix
+            .history
+            .iter()
+            .filter(|h| h.divergence.kept_diverged)
+            .count();
+        let _ = writeln!(
+            t,
+            "  divergence guard: the simulation diverged in {} (first at step {}); {} given up and the {} run again{}",
+            plural(diverged.len(), "step"),
+            diverged[0],
+            plural(given_up, "operation"),
+            if diverged.len() == 1 { "step" } else { "steps" },
+            if kept > 0 {
+                format!(", {kept} kept diverged")
+            } else {
+                String::new()
+            }
         );
     }
     for r in &s.finesse.rows {

@@ -145,6 +145,17 @@ pub fn loop_params(p: &mut untangle::methods::cha_ko::ResolveParams) {
     if std::env::var("CHAKO_HEAVY_FANS").is_ok_and(|s| s == "1") {
         p.heavy_scope = untangle::methods::cha_ko::subjects::HeavyScope::SubjectsAndFans;
     }
+    // CHAKO_DIVERGENCE: the divergence guard's energy ratio (`DivergenceGuard::ratio`; 0 turns
+    // the guard off).
+    if let Some(r) = std::env::var("CHAKO_DIVERGENCE")
+        .ok()
+        .and_then(|s| s.parse::<f64>().ok())
+    {
+        p.divergence = (r > 0.0).then(|| untangle::methods::cha_ko::DivergenceGuard {
+            ratio: r,
+            ..p.divergence.unwrap_or_default()
+        });
+    }
     // CHAKO_UV_UPDATE=0: m-CCH alone, no pulls or shrinks (`ResolveParams::uv_update`).
     if std::env::var("CHAKO_UV_UPDATE").is_ok_and(|s| s == "0") {
         p.uv_update = false;

@@ -273,6 +273,13 @@ pub struct SimSnapshot {
     time: f64,
 }
 
+impl SimSnapshot {
+    /// The cloth's positions at the snapshot.
+    pub fn positions(&self) -> &[Vec3] {
+        &self.x
+    }
+}
+
 /// A cloth simulator over one garment (world vertices = nodes) plus obstacles.
 pub struct Simulator {
     params: SimParams,
@@ -731,6 +738,39 @@ impl Simulator {
     /// Number of nonzero 3x3 blocks of the system matrix.
     pub fn matrix_blocks(&self) -> usize {
         self.pattern.nnz()
+    }
+
+    /// Stretch and shear energy of each triangle at positions `x` (one per cloth vertex)
+    /// against the current rest shape, in triangle order: Baraff & Witkin's conditions
+    /// ([`super::forces::stretch`]), whose sum is [`super::report::Energy::stretch`]. Cha & Ko's
+    /// loop uses it to find which uv edit a diverging step came from
+    /// ([`crate::methods::cha_ko::divergence`]).
+    pub fn stretch_energies(&self, x: &[Vec3]) -> Result<Vec<f64>> {
+        check_vectors("positions", x, self.x.len())?;
+        let p = &self.params;
+        Ok(self
+            .triangles
+            .par_iter()
+            .zip(&self.rest.triangles)
+            .with_min_len(256)
+            .map(|(t, r)| {
+                stretch_energy(
+                    r,
+                    t.map(|k| &x[k as usize]),
+                    p.stretch_stiffness,
+                    p.shear_stiffness,
+                )
+            })
+            .collect())
+    }
+
+    /// Kinetic energy of the current velocities.
+    pub fn kinetic_energy(&self) -> f64 {
+        self.v
+            .iter()
+            .zip(&self.mass)
+            .map(|(v, m)| 0.5 * m * v.norm_squared())
+            .sum()
     }
 
     /// Largest relative edge stretch `|e| / |e_rest| - 1` over all triangle edges (rest lengths

@@ -21,9 +21,11 @@
 //! Appendix C), [`policy`] (m-CCH), [`regionless`] (a fallback colouring for tanglements
 //! without a usable region, ours), [`report`] (per-step reports and the Table 1 analogue),
 //! [`resolve`] (the whole loop of Fig. 1b with the simulator), [`trial`] (the trial step: a
-//! step rolled back and retried when a green vertex turned red, ours).
+//! step rolled back and retried when a green vertex turned red, ours), [`divergence`] (a
+//! diverging simulator step undone and the uv edits it came from given up, ours).
 
 pub mod adaptive;
+pub mod divergence;
 pub mod fallback;
 pub mod fan;
 pub mod operations;
@@ -41,6 +43,7 @@ pub mod tit;
 pub mod trial;
 
 pub use adaptive::{AdaptiveIntegrator, IntegratorSchedule, IntegratorSwitch};
+pub use divergence::{DivergenceGuard, DivergenceReport};
 pub use fallback::Fallback;
 pub use params::{Params, PullOrder};
 pub use policy::{MchPolicy, MixedEdges, PairColour};
@@ -292,6 +295,39 @@ impl ChaKo {
         let report = self.run_schedule(coloring, positions);
         self.step += 1;
         Ok(report)
+    }
+
+    /// Gives up the operations `ids` at once (ours, [`divergence`]): each ends as
+    /// [`EndReason::Diverged`] (if it had not ended), is revoked to its original uv in full, and
+    /// its subject-target pair (or red* triangle) is barred for `2 hold_steps` steps like an
+    /// abandoned one. Ids of operations not in progress are skipped. Returns a stall per
+    /// operation given up, located at its subject in `positions` when given.
+    pub fn give_up(&mut self, ids: &[u32], positions: Option<&[Vec3]>) -> Vec<Stall> {
+        let step = self.step.saturating_sub(1);
+        let bar = step + 2 * u64::from(self.params.hold_steps.max(1));
+        let mut stalls = Vec::new();
+        for &id in ids {
+            let Some(op) = self.state.ops.get(&id) else {
+                continue;
+            };
+            let rec = &mut self.log[id as usize];
+            if rec.end.is_none() {
+                rec.end = Some(EndReason::Diverged);
+                rec.end_step = Some(step);
+            }
+            self.tabu.insert(schedule::TabuKey::of(op), bar);
+            let t = (op.triangle != crate::mesh::topology::NONE).then_some(op.triangle);
+            stalls.push(schedule::stall(
+                &self.mesh,
+                StallReason::Diverged,
+                Some(op.subjects[0]),
+                t,
+                positions,
+            ));
+            self.state.revoke(id, u32::MAX);
+            self.log[id as usize].restored_step = Some(step);
+        }
+        stalls
     }
 
     /// The m-CCH contact policy for the step analysed in `analysis` (of `am`); it implements

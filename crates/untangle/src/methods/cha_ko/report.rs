@@ -19,6 +19,10 @@ pub enum EndReason {
     /// It saturated and was held [`super::Params::hold_steps`] steps without finishing: given
     /// up so that another target (or the red* triangle across the red edge) can be tried.
     Abandoned,
+    /// A simulator step diverged and most of its energy growth was in the triangles at its
+    /// subjects: given up and restored to the original uv at once (ours,
+    /// [`super::divergence`]).
+    Diverged,
 }
 
 /// The life of one operation: the unit the paper's Table 1 counts.
@@ -81,6 +85,9 @@ pub enum StallReason {
     NothingToOperateOn,
     /// A saturated operation was held too long and is given up (see [`EndReason::Abandoned`]).
     Abandoned,
+    /// An operation was given up and restored at once because a simulator step diverged at its
+    /// subjects (see [`EndReason::Diverged`]).
+    Diverged,
 }
 
 /// A place where the method could not proceed.

@@ -9,11 +9,17 @@
 //! number of intersecting triangle pairs never went below its best so far (operations keep
 //! saturating and being abandoned). Every way of stopping is reported; it never loops silently.
 //!
+//! While the cloth intersects, every simulator step is checked by the divergence guard
+//! ([`super::divergence`], on by default): a step whose energy grew more than
+//! [`DivergenceGuard::ratio`] times is undone, the operations it came from are given up and
+//! restored, and the step is run again.
+//!
 //! If the intersection analysis fails on a step (it reports an inconsistency instead of
 //! guessing), the step is recorded with the error, the uv is left as it is, and the simulator
 //! steps with the last good colouring's m-CCH policy (or plain CCH with `eps` on the first step).
 
 use super::adaptive::{AdaptiveIntegrator, IntegratorSchedule, IntegratorSwitch};
+use super::divergence::{self, DivergenceGuard, DivergenceReport};
 use super::report::{FinesseStats, Stall, UvUpdateReport};
 use super::subjects::{collision_mass_factors, subject_flags, HeavyScope};
 use super::trial::{trial_step, BlockHistory, TrialReport};
@@ -92,6 +98,10 @@ pub struct ResolveParams {
     /// Baraff & Witkin for a stretch of steps when the intersecting-pair count stalls. `None`
     /// runs `sim.integrator` throughout.
     pub adaptive: Option<AdaptiveIntegrator>,
+    /// The divergence guard (ours, [`super::divergence`]; on by default): a simulator step
+    /// whose energy grew more than [`DivergenceGuard::ratio`] times is undone, and the
+    /// operations at the triangles that grew are given up and restored. `None` turns it off.
+    pub divergence: Option<DivergenceGuard>,
 }
 
 impl Default for ResolveParams {
@@ -128,6 +138,7 @@ impl Default for ResolveParams {
             },
             projective_cg_cap: Some(1),
             adaptive: None,
+            divergence: Some(DivergenceGuard::default()),
         }
     }
 }
@@ -163,6 +174,9 @@ pub struct LoopStep {
     /// Why the adaptive integrator ([`ResolveParams::adaptive`]) changed the integrator
     /// before this step (`None`: same as the previous step, or no adaptive integrator).
     pub integrator_switch: Option<IntegratorSwitch>,
+    /// The divergence guard ([`ResolveParams::divergence`]): diverged tries and the
+    /// operations given up.
+    pub divergence: DivergenceReport,
     /// Whether the simulator's collision handling ended the step with an administrative quit.
     pub administrative_quit: bool,
     /// Impact zones the simulator needed.
@@ -249,6 +263,8 @@ pub struct Resolver {
     blocked_for: BlockHistory,
     /// The adaptive integrator's state ([`ResolveParams::adaptive`]).
     schedule: Option<IntegratorSchedule>,
+    /// [`divergence::energy_floor`] of the garment.
+    energy_floor: f64,
 }
 
 /// Sets the loop simulator's integrator, with the loop's CG cap of projective global steps
@@ -263,6 +279,9 @@ fn set_integrator(sp: &mut SimParams, integrator: Integrator, cap: Option<usize>
 impl Resolver {
     /// A loop for `garment` starting at its current positions, at rest.
     pub fn new(garment: &Garment, params: ResolveParams) -> Result<Resolver> {
+        if let Some(g) = &params.divergence {
+            g.validate()?;
+        }
         let mut sp = params.sim.clone();
         sp.dt = params.cha_ko.dt;
         let schedule = params.adaptive.map(IntegratorSchedule::new);
@@ -271,6 +290,7 @@ impl Resolver {
         let sim = Simulator::new(garment, sp)?;
         let chako = ChaKo::new(garment, params.cha_ko.clone())?;
         let (am, _) = AnalysisMesh::single(&garment.mesh)?;
+        let energy_floor = divergence::energy_floor(garment, params.sim.stretch_stiffness);
         Ok(Resolver {
             chako,
             sim,
@@ -288,6 +308,7 @@ impl Resolver {
             analysed: None,
             blocked_for: Default::default(),
             schedule,
+            energy_floor,
         })
     }
 
@@ -368,7 +389,7 @@ impl Resolver {
         } else {
             0
         };
-        let uv = if self.params.uv_update {
+        let mut uv = if self.params.uv_update {
             self.chako.update_uv(&self.am, &a, &pos)?
         } else {
             UvUpdateReport::default()
@@ -378,40 +399,43 @@ impl Resolver {
             self.sim.set_rest_uv(self.chako.current_uv())?;
         }
         let t2 = Instant::now();
-        if self.params.heavy_subjects != 1.0 {
-            let n = self.sim.positions().len();
-            let f = collision_mass_factors(
-                self.chako.operations(),
-                &self.chako.garment().topology,
-                n,
-                self.params.heavy_subjects,
-                self.params.heavy_scope,
-            );
-            self.sim.set_collision_mass_factors(f)?;
+        let guard = self.params.divergence.filter(|_| !clean);
+        let snap = guard.map(|_| self.sim.snapshot());
+        let (mut sr, mut trial) = self.simulate(&a)?;
+        let mut divergence = DivergenceReport::default();
+        if let (Some(g), Some(snap)) = (guard, snap) {
+            for round in 0..=g.rounds {
+                let start = sr.energy.stretch + sr.energy.kinetic;
+                let end_tri = self.sim.stretch_energies(self.sim.positions())?;
+                let end = end_tri.iter().sum::<f64>() + self.sim.kinetic_energy();
+                divergence.growth = divergence::growth(start, end, self.energy_floor);
+                if !divergence::diverged(start, end, g.ratio, self.energy_floor) {
+                    break;
+                }
+                divergence.diverged += 1;
+                divergence.max_growth = divergence.max_growth.max(divergence.growth);
+                let before = self.sim.stretch_energies(snap.positions())?;
+                let growth: Vec<f64> = end_tri.iter().zip(&before).map(|(e, b)| e - b).collect();
+                let ids = divergence::charged(
+                    self.chako.operations(),
+                    &self.chako.garment().topology,
+                    &growth,
+                    g.share,
+                );
+                if ids.is_empty() || round == g.rounds {
+                    divergence.kept_diverged = true;
+                    break;
+                }
+                let stalls = self.chako.give_up(&ids, Some(&pos));
+                uv.abandoned += ids.len();
+                uv.stalls.extend(stalls);
+                uv.active_ops = self.chako.operations().count();
+                divergence.given_up.extend(ids);
+                self.sim.restore(&snap)?;
+                self.sim.set_rest_uv(self.chako.current_uv())?;
+                (sr, trial) = self.simulate(&a)?;
+            }
         }
-        let subjects: Vec<bool>;
-        let mut policy = self.chako.contact_policy(&self.am, &a);
-        if self.params.subject_rg_scale != 1.0 {
-            subjects = subject_flags(self.chako.operations(), self.sim.positions().len());
-            let t =
-                (self.chako.eps_rg() * self.params.subject_rg_scale).max(self.chako.params().eps);
-            policy.thin_rg = Some((&subjects, t));
-        }
-        let (sr, trial) = if self.params.cha_ko.trial_retries > 0 && !a.is_clean() {
-            let t = trial_step(
-                &mut self.sim,
-                &self.am,
-                &a,
-                &policy,
-                &self.params.cha_ko,
-                &self.params.analysis,
-                &mut self.blocked_for,
-            )?;
-            self.analysed = t.analysed;
-            (t.step, t.trial)
-        } else {
-            (self.sim.step(&policy), TrialReport::default())
-        };
         let t3 = Instant::now();
         let index = self.history.len() as u64;
         if clean && self.clean_at.is_none() {
@@ -446,6 +470,7 @@ impl Resolver {
             trial,
             integrator: self.sim.params().integrator,
             integrator_switch,
+            divergence,
             administrative_quit: sr.administrative_quit(),
             impact_zones: sr.collisions.impact_zones,
             analysis_error: None,
@@ -460,6 +485,45 @@ impl Resolver {
         }
         self.history.push(rec.clone());
         Ok((rec, sr))
+    }
+
+    /// The simulator step of a pass with the m-CCH policy of `a` (with the heavy subjects and
+    /// thin red-green pairs of the operations in progress, and the trial step when on).
+    fn simulate(&mut self, a: &Analysis) -> Result<(StepReport, TrialReport)> {
+        if self.params.heavy_subjects != 1.0 {
+            let n = self.sim.positions().len();
+            let f = collision_mass_factors(
+                self.chako.operations(),
+                &self.chako.garment().topology,
+                n,
+                self.params.heavy_subjects,
+                self.params.heavy_scope,
+            );
+            self.sim.set_collision_mass_factors(f)?;
+        }
+        let subjects: Vec<bool>;
+        let mut policy = self.chako.contact_policy(&self.am, a);
+        if self.params.subject_rg_scale != 1.0 {
+            subjects = subject_flags(self.chako.operations(), self.sim.positions().len());
+            let t =
+                (self.chako.eps_rg() * self.params.subject_rg_scale).max(self.chako.params().eps);
+            policy.thin_rg = Some((&subjects, t));
+        }
+        Ok(if self.params.cha_ko.trial_retries > 0 && !a.is_clean() {
+            let t = trial_step(
+                &mut self.sim,
+                &self.am,
+                a,
+                &policy,
+                &self.params.cha_ko,
+                &self.params.analysis,
+                &mut self.blocked_for,
+            )?;
+            self.analysed = t.analysed;
+            (t.step, t.trial)
+        } else {
+            (self.sim.step(&policy), TrialReport::default())
+        })
     }
 
     /// Puts the adaptive integrator's choice into the simulator; returns why it changed.
@@ -518,6 +582,7 @@ impl Resolver {
             trial: TrialReport::default(),
             integrator: self.sim.params().integrator,
             integrator_switch,
+            divergence: DivergenceReport::default(),
             administrative_quit: sr.administrative_quit(),
             impact_zones: sr.collisions.impact_zones,
             analysis_error: Some(error),

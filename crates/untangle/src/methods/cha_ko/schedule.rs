@@ -543,7 +543,7 @@ pub(super) enum TabuKey {
 }
 
 impl TabuKey {
-    fn of(op: &Op) -> TabuKey {
+    pub(super) fn of(op: &Op) -> TabuKey {
         match op.kind {
             OpKind::Pull => TabuKey::Pull(op.subjects[0], op.target),
             OpKind::Shrink => TabuKey::Shrink(op.triangle),
@@ -659,7 +659,7 @@ fn note_level(state: &UvState, log: &mut [FinesseRecord], id: u32) {
 }
 
 /// A stall entry with the location of vertex `v` (else the centroid of triangle `t`).
-fn stall(
+pub(super) fn stall(
     mesh: &UvMesh,
     reason: StallReason,
     v: Option<u32>,
