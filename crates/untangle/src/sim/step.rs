@@ -747,9 +747,13 @@ impl Simulator {
     /// ([`crate::methods::cha_ko::divergence`]).
     pub fn stretch_energies(&self, x: &[Vec3]) -> Result<Vec<f64>> {
         check_vectors("positions", x, self.x.len())?;
+        Ok(self.triangle_energies(x))
+    }
+
+    /// [`Simulator::stretch_energies`] of positions known to fit.
+    fn triangle_energies(&self, x: &[Vec3]) -> Vec<f64> {
         let p = &self.params;
-        Ok(self
-            .triangles
+        self.triangles
             .par_iter()
             .zip(&self.rest.triangles)
             .with_min_len(256)
@@ -761,7 +765,7 @@ impl Simulator {
                     p.shear_stiffness,
                 )
             })
-            .collect())
+            .collect()
     }
 
     /// Kinetic energy of the current velocities.
@@ -872,9 +876,7 @@ impl Simulator {
         let mut k = BsrMatrix::zeros(&self.pattern);
         let (f, e_stretch, e_bend) = self.assemble(&mut k);
         let energy = Energy {
-            kinetic: (0..n)
-                .map(|i| 0.5 * self.mass[i] * self.v[i].norm_squared())
-                .sum(),
+            kinetic: self.kinetic_energy(),
             stretch: e_stretch,
             bend: e_bend,
             gravity: -(0..n)
@@ -1507,22 +1509,9 @@ impl Simulator {
         let h = p.dt;
         let n = self.x.len();
         let energy = Energy {
-            kinetic: (0..n)
-                .map(|i| 0.5 * self.mass[i] * self.v[i].norm_squared())
-                .sum(),
-            stretch: self
-                .triangles
-                .par_iter()
-                .zip(&self.rest.triangles)
-                .with_min_len(256)
-                .map(|(t, r)| {
-                    let x = t.map(|k| &self.x[k as usize]);
-                    stretch_energy(r, x, p.stretch_stiffness, p.shear_stiffness)
-                })
-                // Summed in triangle order: rayon's parallel sum depends on the thread count.
-                .collect::<Vec<f64>>()
-                .iter()
-                .sum(),
+            kinetic: self.kinetic_energy(),
+            // Summed in triangle order: rayon's parallel sum depends on the thread count.
+            stretch: self.triangle_energies(&self.x).iter().sum(),
             bend: self
                 .rest
                 .bend
