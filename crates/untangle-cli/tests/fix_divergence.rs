@@ -73,3 +73,54 @@ fn a_forced_divergence_is_reported_and_its_operations_given_up() {
         assert!(s["divergence"]["growth"].as_f64().unwrap() < 10.0);
     }
 }
+
+/// The combined method's Cha & Ko stage has the same guard: its steps in the report carry the
+/// `divergence` record, and the summary line counts them with their index in the whole run.
+#[test]
+fn the_combined_methods_cha_ko_stage_reports_the_guard() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = untangle(&["scene", "bli", "-o", "scene.obj"], d);
+    assert!(o.status.success());
+    let o = untangle(
+        &[
+            "fix",
+            "scene.obj",
+            "-o",
+            "out.obj",
+            "--method",
+            "combined",
+            "--max-steps",
+            "8",
+            "--divergence-ratio",
+            "1e-300",
+            "--json",
+            "r.json",
+        ],
+        d,
+    );
+    assert!(matches!(o.status.code(), Some(0 | 1)));
+    let r = json(&d.join("r.json"));
+    let steps = r["steps"].as_array().unwrap();
+    let cha_ko: Vec<(usize, &serde_json::Value)> = steps
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s["stage"] == "cha_ko")
+        .collect();
+    assert!(!cha_ko.is_empty(), "the Cha & Ko stage ran");
+    // Every try diverges, so every Cha & Ko step does; the Wicke steps have no such record.
+    for (_, s) in &cha_ko {
+        assert!(s["divergence"]["diverged"].as_u64().unwrap() >= 1, "{s}");
+    }
+    assert!(steps
+        .iter()
+        .filter(|s| s["stage"] != "cha_ko")
+        .all(|s| s.get("divergence").is_none()));
+    let n = cha_ko.len();
+    let line = format!(
+        "divergence guard: the simulation diverged in {n} step{} (first at step {});",
+        if n == 1 { "" } else { "s" },
+        cha_ko[0].0
+    );
+    assert!(stdout(&o).contains(&line), "{}\nwant {line}", stdout(&o));
+}

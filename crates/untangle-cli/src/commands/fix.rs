@@ -743,6 +743,7 @@ pub(crate) fn step_json(s: &LoopStep) -> serde_json::Value {
         "analysis_error": s.analysis_error,
         "integrator": s.integrator,
         "integrator_switch": s.integrator_switch,
+        "divergence": s.divergence,
         "ms": step_ms(s),
         "ms_analysis": s.ms_analysis,
         "ms_uv": s.ms_uv + s.ms_rest,
@@ -776,6 +777,37 @@ fn integrator_line(history: &[LoopStep]) -> Option<String> {
         line.push_str(&format!(" (switches: {})", switches.join(", ")));
     }
     Some(line)
+}
+
+/// The summary's divergence-guard line, when the guard acted
+/// ([`untangle::methods::cha_ko::divergence`]): in how many steps a simulator step diverged,
+/// the first (`steps` pairs each Cha & Ko step with its index in the whole run), how many
+/// operations were given up and how many steps kept a diverged result.
+pub(crate) fn divergence_line<'a>(
+    steps: impl IntoIterator<Item = (usize, &'a LoopStep)>,
+) -> Option<String> {
+    let (mut diverged, mut first, mut given_up, mut kept) = (0, None, 0, 0);
+    for (k, h) in steps {
+        let d = &h.divergence;
+        if d.diverged > 0 {
+            diverged += 1;
+            first = first.or(Some(k));
+        }
+        given_up += d.given_up.len();
+        kept += d.kept_diverged as usize;
+    }
+    let first = first?;
+    Some(format!(
+        "divergence guard: the simulation diverged in {} (first at step {first}); {} given up and the {} run again{}",
+        plural(diverged, "step"),
+        plural(given_up, "operation"),
+        if diverged == 1 { "step" } else { "steps" },
+        if kept > 0 {
+            format!(", {kept} kept diverged")
+        } else {
+            String::new()
+        }
+    ))
 }
 
 /// `n thing` or `n things`.
@@ -975,36 +1007,8 @@ pub fn text_summary(fix: &FixRun) -> String {
             "  winding regions (cloth inside another tube of the garment) coloured red in {winding_steps} steps"
         );
     }
-    let diverged: Vec<u64> = fix
-        .history
-        .iter()
-        .filter(|h| h.divergence.diverged > 0)
-        .map(|h| h.step)
-        .collect();
-    if !diverged.is_empty() {
-        let given_up: usize = fix
-            .history
-            .iter()
-            .map(|h| h.divergence.given_up.len())
-            .sum();
-        let kept = fix
-            .history
-            .iter()
-            .filter(|h| h.divergence.kept_diverged)
-            .count();
-        let _ = writeln!(
-            t,
-            "  divergence guard: the simulation diverged in {} (first at step {}); {} given up and the {} run again{}",
-            plural(diverged.len(), "step"),
-            diverged[0],
-            plural(given_up, "operation"),
-            if diverged.len() == 1 { "step" } else { "steps" },
-            if kept > 0 {
-                format!(", {kept} kept diverged")
-            } else {
-                String::new()
-            }
-        );
+    if let Some(line) = divergence_line(fix.history.iter().map(|h| (h.step as usize, h))) {
+        let _ = writeln!(t, "  {line}");
     }
     for r in &s.finesse.rows {
         if r.count + r.unfinished > 0 {

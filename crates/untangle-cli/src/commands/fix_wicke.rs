@@ -365,6 +365,15 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
                 n[0], n[1], n[2]
             );
         }
+        if let Runner::Combined(c) = &runner {
+            let cha_ko = c.history().iter().enumerate().filter_map(|(k, s)| match s {
+                CombinedStep::ChaKo(l) => Some((k, &**l)),
+                CombinedStep::Wicke(..) => None,
+            });
+            if let Some(line) = super::fix::divergence_line(cha_ko) {
+                println!("{line}");
+            }
+        }
         if body_tail_steps > 0 {
             println!("then {body_tail_steps} steps with full collision handling to play the rest of the body animation");
         }
