@@ -6,33 +6,43 @@
 mod common;
 use common::{json, stdout, untangle};
 
+/// Writes scene `scene` into `d` and runs `fix` on it with `method`, `steps` and the guard's
+/// `ratio`: its stdout and JSON report (exit 0 or 1, never an error).
+fn fix(
+    d: &std::path::Path,
+    scene: &str,
+    method: &str,
+    steps: &str,
+    ratio: &str,
+) -> (String, serde_json::Value) {
+    let o = untangle(&["scene", scene, "-o", "scene.obj"], d);
+    assert!(o.status.success());
+    let o = untangle(
+        &[
+            "fix",
+            "scene.obj",
+            "-o",
+            "out.obj",
+            "--method",
+            method,
+            "--max-steps",
+            steps,
+            "--divergence-ratio",
+            ratio,
+            "--json",
+            "r.json",
+        ],
+        d,
+    );
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{ratio}: no error");
+    (stdout(&o), json(&d.join("r.json")))
+}
+
 #[test]
 fn a_forced_divergence_is_reported_and_its_operations_given_up() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let o = untangle(&["scene", "eight", "-o", "scene.obj"], d);
-    assert!(o.status.success());
-    let fix = |ratio: &str| {
-        let o = untangle(
-            &[
-                "fix",
-                "scene.obj",
-                "-o",
-                "out.obj",
-                "--method",
-                "cha-ko",
-                "--max-steps",
-                "3",
-                "--divergence-ratio",
-                ratio,
-                "--json",
-                "r.json",
-            ],
-            d,
-        );
-        assert!(matches!(o.status.code(), Some(0 | 1)), "{ratio}: no error");
-        (stdout(&o), json(&d.join("r.json")))
-    };
+    let fix = |ratio: &str| fix(d, "eight", "cha-ko", "3", ratio);
     let (out, r) = fix("1e-300");
     let steps = r["step_details"].as_array().unwrap();
     assert_eq!(steps.len(), 3);
@@ -80,27 +90,7 @@ fn a_forced_divergence_is_reported_and_its_operations_given_up() {
 fn the_combined_methods_cha_ko_stage_reports_the_guard() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let o = untangle(&["scene", "bli", "-o", "scene.obj"], d);
-    assert!(o.status.success());
-    let o = untangle(
-        &[
-            "fix",
-            "scene.obj",
-            "-o",
-            "out.obj",
-            "--method",
-            "combined",
-            "--max-steps",
-            "8",
-            "--divergence-ratio",
-            "1e-300",
-            "--json",
-            "r.json",
-        ],
-        d,
-    );
-    assert!(matches!(o.status.code(), Some(0 | 1)));
-    let r = json(&d.join("r.json"));
+    let (out, r) = fix(d, "bli", "combined", "8", "1e-300");
     let steps = r["steps"].as_array().unwrap();
     let cha_ko: Vec<(usize, &serde_json::Value)> = steps
         .iter()
@@ -122,5 +112,5 @@ fn the_combined_methods_cha_ko_stage_reports_the_guard() {
         if n == 1 { "" } else { "s" },
         cha_ko[0].0
     );
-    assert!(stdout(&o).contains(&line), "{}\nwant {line}", stdout(&o));
+    assert!(out.contains(&line), "{out}\nwant {line}");
 }
