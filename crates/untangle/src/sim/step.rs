@@ -744,9 +744,17 @@ impl Simulator {
     /// against the current rest shape, in triangle order: Baraff & Witkin's conditions
     /// ([`super::forces::stretch`]), whose sum is [`super::report::Energy::stretch`]. Cha & Ko's
     /// loop uses it to find which uv edit a diverging step came from
-    /// ([`crate::methods::cha_ko::divergence`]).
+    /// ([`crate::methods::cha_ko::divergence`]), so non-finite positions are accepted: the
+    /// triangles at them get non-finite energies (a blown-up step must be measurable, not an
+    /// error). A wrong number of positions is an error.
     pub fn stretch_energies(&self, x: &[Vec3]) -> Result<Vec<f64>> {
-        check_vectors("positions", x, self.x.len())?;
+        if x.len() != self.x.len() {
+            return Err(Error::Parameter(format!(
+                "positions: {} given, the cloth has {} vertices",
+                x.len(),
+                self.x.len()
+            )));
+        }
         Ok(self.triangle_energies(x))
     }
 
