@@ -4,8 +4,8 @@
 //! A pull shortens its subject's edges in uv by `gamma` per step (Sec. 5.1) whether or not the
 //! world follows. When contacts hold the subject, the stretch force on its fan grows step after
 //! step; on dress4 sagged 60 steps one pull (vertex 502 toward 1838) held 99.7 % of the cloth's
-//! stretch energy from step 13 on, the energy grew 4x, 4x and 8x in steps 17-19 with the rest
-//! shape unchanged, and step 20 multiplied it by 1,170 (1.4e6 J to 1.7e9 J): vertices flung
+//! stretch energy from step 13 on (a scratch measurement), the energy grew 4x, 4x and 8x in
+//! steps 17-19 with the pull's rest shape held at its cap, and step 20 multiplied it by 1,170 (1.4e6 J to 1.7e9 J): vertices flung
 //! across the scene, 20 M CCD candidates and 15 GB of memory in the steps after
 //! (BENCHMARKS.md, session 32).
 //!

@@ -155,7 +155,8 @@ pub struct UvUpdateReport {
     pub pull_loop_targets_skipped: usize,
     /// Shrinks toward a loop vertex started as a last resort (ours, see [`super::schedule`]).
     pub loop_target_last_resort: usize,
-    /// Operations abandoned this step.
+    /// Operations abandoned this step: held saturated too long, or given up by the
+    /// divergence guard ([`super::divergence`]).
     pub abandoned: usize,
     /// Candidate targets / shrinks that failed the inversion test.
     pub tit_rejected: usize,
