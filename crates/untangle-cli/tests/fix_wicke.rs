@@ -128,6 +128,11 @@ fn combined_fixes_an_exploded_handkerchief_in_stages() {
     assert!(steps
         .iter()
         .any(|s| s["stage"] == "cha_ko" && s["red_vertices"].is_u64()));
+    // The stages' settings are in the report.
+    let p = &rep["params"];
+    assert_eq!(p["finish_stuck_steps"], 30);
+    assert_eq!(p["rounds"], 2);
+    assert_eq!(p["prepass_keep_below"], 0.5);
 }
 
 #[test]

@@ -381,7 +381,8 @@ mod combined {
     }
 
     /// Exploded seed 73: one round (Cha & Ko, then the finish) ends with tanglements left; the
-    /// second round (Cha & Ko again from the finish's state) resolves it.
+    /// second round (Cha & Ko again, from the input: the first started from the pre-pass's
+    /// state) resolves it.
     #[test]
     fn a_second_round_resolves_what_the_first_left() {
         let g = exploded_garment(73);
@@ -417,6 +418,59 @@ mod combined {
             .map(|s| s.intersecting_pairs())
             .collect();
         assert_eq!(tail, chako_alone_pairs(&g));
+    }
+
+    /// The finishing stage gives up after `finish_stuck_steps` steps without a new lowest
+    /// pair count (oracle: the stage's own pair counts), and a second round that follows a
+    /// first started from the input begins at the run's fewest-pair state after the first step
+    /// (oracle: the step records' counts and an independent analysis of where the finish
+    /// stopped). Cha & Ko is made to stop early (stuck after 3 steps without progress) so that
+    /// both stages run on a small scene.
+    #[test]
+    fn the_finish_gives_up_and_the_second_round_starts_from_the_fewest_pairs() {
+        let g = exploded_garment(4);
+        let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
+        let mut p = params(1);
+        p.prepass_keep_below = 0.0;
+        p.cha_ko.stuck_steps = 3;
+        p.finish_stuck_steps = 4;
+        p.max_steps = 200;
+        let mut r = CombinedResolver::new(&g, p).unwrap();
+        let mut after = Vec::new(); // positions after each step
+        while r.step().unwrap().is_some() {
+            after.push(r.positions().to_vec());
+        }
+        let h = r.history();
+        let stages: Vec<Stage> = h.iter().map(|s| s.stage()).collect();
+        let first_finish = stages.iter().position(|&s| s == Stage::Finish).unwrap();
+        let second = first_finish
+            + stages[first_finish..]
+                .iter()
+                .position(|&s| s == Stage::ChaKo)
+                .unwrap();
+        // The finish: at most `finish_stuck_steps` steps after its last new low.
+        let fin: Vec<usize> = h[first_finish..second]
+            .iter()
+            .map(|s| s.intersecting_pairs())
+            .collect();
+        let last_low = (0..fin.len())
+            .filter(|&i| fin[..i].iter().all(|&x| fin[i] < x))
+            .max()
+            .unwrap();
+        assert_eq!(fin.len() - 1 - last_low, 4, "{fin:?}");
+        // The second round's first step sees the fewest-pair state after step 1, or where the
+        // finish stopped if that has fewer.
+        let end_pairs = analyze(&am, &after[second - 1]).unwrap().segments.len();
+        let fewest = h[1..second]
+            .iter()
+            .map(|s| s.intersecting_pairs())
+            .min()
+            .unwrap();
+        assert!(
+            fewest < end_pairs,
+            "{fewest} {end_pairs}: the rule is not exercised"
+        );
+        assert_eq!(h[second].intersecting_pairs(), fewest);
     }
 
     /// A moving obstacle (a quad far below, sinking 1 cm per step): every stage's simulator has

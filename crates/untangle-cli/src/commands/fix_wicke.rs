@@ -318,7 +318,10 @@ pub fn run(args: &Args, garment: &Garment, setup: &Setup, ctx: &Context) -> Resu
                 "wicke": params_json,
                 "cha_ko": cp.cha_ko.cha_ko,
                 "prepass_patience": cp.prepass_patience,
+                "prepass_keep_below": cp.prepass_keep_below,
                 "finish_steps": cp.finish_steps,
+                "finish_stuck_steps": cp.finish_stuck_steps,
+                "rounds": cp.rounds,
                 "max_steps": cp.max_steps,
             });
         }

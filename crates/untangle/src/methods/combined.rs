@@ -14,15 +14,23 @@
 //! 3. **Finish** (Wicke again): if Cha & Ko stops with tanglements left (stuck or out of
 //!    steps), Wicke's loop runs from there for at most `finish_steps` steps: the leftovers that
 //!    stall Cha & Ko (a BLI path, an LL path whose pulls saturate) are often what penalty
-//!    forces resolve in a few steps.
+//!    forces resolve in a few steps. It gives up once its pair count has missed a new low for
+//!    `finish_stuck_steps` (30) steps: where it does not resolve a leftover soon it usually
+//!    multiplies it (exploded seed 73: 15 -> 979 pairs; dress4 sagged 25 steps: 290 -> 2,400
+//!    pairs at up to 2 s per step), so waiting out Wicke's own 100 stuck steps only costs time.
 //! 4. **Rounds**: if the finish also ends with tanglements left, Cha & Ko runs again, then the
 //!    finish again, up to `rounds` (2) rounds of stages 2-3 in all. The second round starts
 //!    from the input when the first started from the pre-pass's state (and no obstacle has
-//!    moved), else from where the finish stopped: a state the pre-pass shook is not always a
-//!    better start than the input, and this way the combined loop resolves, budget permitting,
-//!    whatever Cha & Ko's loop alone resolves (exploded seed 73: stuck after one round, then
-//!    Cha & Ko's own 90 steps; seeds 73 and 94 stayed unresolved after two rounds that
-//!    continued from the finish's state when the RBF fits' last bits changed).
+//!    moved): a state the pre-pass shook is not always a better start than the input, and this
+//!    way the combined loop resolves, budget permitting, whatever Cha & Ko's loop alone
+//!    resolves (exploded seed 73: stuck after one round, then Cha & Ko's own 90 steps; seeds 73
+//!    and 94 stayed unresolved after two rounds that continued from the finish's state when
+//!    the RBF fits' last bits changed). When the first round started from the input, the
+//!    second starts from the state with the fewest intersecting pairs the run has seen after
+//!    its first step (any stage), if that has fewer pairs than where the finish stopped, else
+//!    from where the finish stopped: on dress4 sagged 25 steps the finish had taken the cloth
+//!    from 290 to 2,412 pairs, and the second round went on from there, 1-4 s per step, to no
+//!    avail.
 //!
 //! Each stage runs its own simulator, built from the garment at the previous stage's positions
 //! (velocities start at zero); pinned vertices and obstacles are given to every stage. All
@@ -62,9 +70,13 @@ pub struct CombinedParams {
     pub finish_steps: usize,
     /// Step budget of all stages together.
     pub max_steps: usize,
+    /// The finishing stage stops once its intersecting-pair count has missed a new low this
+    /// many steps in a row (Wicke's `stuck_steps` for that stage only).
+    pub finish_stuck_steps: usize,
     /// Cha & Ko + finish rounds: when the finishing stage ends with tanglements left, Cha &
     /// Ko's loop runs again (from the input if the first round started from the pre-pass's
-    /// state, else from there), then the finish again, up to this many rounds in all.
+    /// state, else from the run's fewest-pair state or where the finish stopped, see the
+    /// module text), then the finish again, up to this many rounds in all.
     pub rounds: usize,
 }
 
@@ -76,6 +88,7 @@ impl Default for CombinedParams {
             prepass_patience: 1,
             prepass_keep_below: 0.5,
             finish_steps: 200,
+            finish_stuck_steps: 30,
             max_steps: 2000,
             rounds: 2,
         }
@@ -163,6 +176,9 @@ pub struct CombinedResolver {
     since_best: usize,
     /// Intersecting pairs of the input (seen at the pre-pass's first step).
     input_pairs: Option<usize>,
+    /// The run's fewest-pair state after its first step, any stage (a second round may start
+    /// there); not kept once an obstacle has moved.
+    fewest: Fewest,
     /// Cha & Ko + finish rounds started.
     rounds: usize,
     /// Whether the first Cha & Ko stage started from the pre-pass's state (not the input).
@@ -204,6 +220,7 @@ impl CombinedResolver {
             best: Fewest::new(true),
             since_best: 0,
             input_pairs: None,
+            fewest: Fewest::new(true),
             rounds: 1,
             from_prepass: false,
             next_obstacle: Vec::new(),
@@ -363,10 +380,38 @@ impl CombinedResolver {
         let g = self.garment.with_positions(&positions)?;
         let mut wp = self.params.wicke.clone();
         wp.max_steps = steps + 1;
+        wp.stuck_steps = self.params.finish_stuck_steps;
         let mut r = WickeResolver::new(&g, &self.am, wp)?;
         self.configure(r.simulator_mut())?;
         self.active = Active::Wicke(Stage::Finish, Box::new(r));
         Ok(())
+    }
+
+    /// Offers the state a step started from (after `after_steps` steps of the run, with
+    /// `pairs` intersecting pairs) to the run's fewest-pair tracker; the input (no step run
+    /// yet) is left out, a second round never starts there.
+    fn offer_fewest(&mut self, after_steps: usize, pairs: usize, positions: Vec<Vec3>) {
+        if after_steps > 0 && !self.obstacle_moved {
+            self.fewest.offer(after_steps, pairs, Some(positions));
+        }
+    }
+
+    /// Where a second round starts when the first started from the input: the run's
+    /// fewest-pair state, if it has fewer pairs than `finish_end` (where the finish stopped),
+    /// else `finish_end`.
+    fn second_round_start(&mut self, finish_end: Vec<Vec3>) -> Vec<Vec3> {
+        if self.obstacle_moved {
+            return finish_end;
+        }
+        let Ok(end_pairs) =
+            crate::analysis::analyze(&self.am, &finish_end).map(|a| a.segments.len())
+        else {
+            return finish_end;
+        };
+        match self.fewest.take() {
+            Some(b) if b.pairs < end_pairs => b.positions,
+            _ => finish_end,
+        }
     }
 
     /// Stops with tanglements left at `positions`: out of steps, or every stage tried.
@@ -402,7 +447,8 @@ impl CombinedResolver {
                                     let input = self.garment.mesh.positions.clone();
                                     self.start_cha_ko(&input)?;
                                 } else {
-                                    self.start_cha_ko(&pos)?;
+                                    let from = self.second_round_start(pos);
+                                    self.start_cha_ko(&from)?;
                                 }
                             }
                             _ => self.stop_unresolved(pos),
@@ -413,23 +459,27 @@ impl CombinedResolver {
                         self.end_prepass()?;
                         continue;
                     }
-                    // The pre-pass remembers the state each step starts from.
-                    let before =
-                        (stage == Stage::Prepass).then(|| w.simulator().positions().to_vec());
+                    // Every step's start state is offered to the run's tracker; the pre-pass
+                    // also keeps its own.
+                    let before = w.simulator().positions().to_vec();
                     let (s, stepped) = w.step()?;
-                    if before.is_some() {
+                    if stepped.is_none() {
+                        // It only analysed and found the cloth clean: not a step.
+                        continue;
+                    }
+                    let k = self.history.len();
+                    if stage == Stage::Prepass {
                         self.input_pairs.get_or_insert(s.intersecting_pairs);
-                        let k = self.history.len();
-                        if self.best.offer(k, s.intersecting_pairs, before) {
+                        if self
+                            .best
+                            .offer(k, s.intersecting_pairs, Some(before.clone()))
+                        {
                             self.since_best = 0;
                         } else {
                             self.since_best += 1;
                         }
                     }
-                    if stepped.is_none() {
-                        // It only analysed and found the cloth clean: not a step.
-                        continue;
-                    }
+                    self.offer_fewest(k, s.intersecting_pairs, before);
                     let rec = CombinedStep::Wicke(stage, s);
                     self.history.push(rec.clone());
                     self.advance_obstacles();
@@ -445,7 +495,9 @@ impl CombinedResolver {
                         }
                         continue;
                     }
+                    let before = c.simulator().positions().to_vec();
                     let (s, _) = c.step()?;
+                    self.offer_fewest(self.history.len(), s.intersecting_pairs, before);
                     let rec = CombinedStep::ChaKo(Box::new(s));
                     self.history.push(rec.clone());
                     self.advance_obstacles();
