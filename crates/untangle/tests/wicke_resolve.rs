@@ -421,7 +421,8 @@ mod combined {
     }
 
     /// The finishing stage gives up after `finish_stuck_steps` steps without a new lowest
-    /// pair count (oracle: the stage's own pair counts), and a second round that follows a
+    /// pair count, above its starting count (oracle: the stage's own pair counts), and a
+    /// second round that follows a
     /// first started from the input begins at the run's fewest-pair state after the first step
     /// (oracle: the step records' counts and an independent analysis of where the finish
     /// stopped). Cha & Ko is made to stop early (stuck after 3 steps without progress) so that
@@ -458,6 +459,7 @@ mod combined {
             .max()
             .unwrap();
         assert_eq!(fin.len() - 1 - last_low, 4, "{fin:?}");
+        assert!(fin[fin.len() - 1] > fin[0], "{fin:?}");
         // The second round's first step sees the fewest-pair state after step 1, or where the
         // finish stopped if that has fewer.
         let end_pairs = analyze(&am, &after[second - 1]).unwrap().segments.len();

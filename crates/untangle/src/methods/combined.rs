@@ -15,9 +15,12 @@
 //!    steps), Wicke's loop runs from there for at most `finish_steps` steps: the leftovers that
 //!    stall Cha & Ko (a BLI path, an LL path whose pulls saturate) are often what penalty
 //!    forces resolve in a few steps. It gives up once its pair count has missed a new low for
-//!    `finish_stuck_steps` (30) steps: where it does not resolve a leftover soon it usually
-//!    multiplies it (exploded seed 73: 15 -> 979 pairs; dress4 sagged 25 steps: 290 -> 2,400
-//!    pairs at up to 2 s per step), so waiting out Wicke's own 100 stuck steps only costs time.
+//!    `finish_stuck_steps` (30) steps *and* is above the count it started from
+//!    ([`FinishWatch`]): where it has not resolved a leftover by then it has usually
+//!    multiplied it (exploded seed 73: 15 -> 979 pairs; dress4 sagged 25 steps: 290 -> 2,400
+//!    pairs at up to 2 s per step), so waiting out Wicke's own 100 stuck steps only costs
+//!    time; a finish that holds its starting count may still get there (exploded seed 58: 5
+//!    pairs for 36 steps, then clean).
 //! 4. **Rounds**: if the finish also ends with tanglements left, Cha & Ko runs again, then the
 //!    finish again, up to `rounds` (2) rounds of stages 2-3 in all. The second round starts
 //!    from the input when the first started from the pre-pass's state (and no obstacle has
@@ -71,7 +74,8 @@ pub struct CombinedParams {
     /// Step budget of all stages together.
     pub max_steps: usize,
     /// The finishing stage stops once its intersecting-pair count has missed a new low this
-    /// many steps in a row (Wicke's `stuck_steps` for that stage only).
+    /// many steps in a row while above the count it started from ([`FinishWatch`]); Wicke's
+    /// own `stuck_steps` still applies.
     pub finish_stuck_steps: usize,
     /// Cha & Ko + finish rounds: when the finishing stage ends with tanglements left, Cha &
     /// Ko's loop runs again (from the input if the first round started from the pre-pass's
@@ -92,6 +96,50 @@ impl Default for CombinedParams {
             max_steps: 2000,
             rounds: 2,
         }
+    }
+}
+
+/// When the finishing stage gives up (ours): its intersecting-pair count has missed a new low
+/// for `patience` steps in a row and is above the count of its first step. A finish that
+/// holds its starting count keeps going (Wicke's own stuck rule still ends it); one that has
+/// multiplied the pairs Cha & Ko left and not come back down in `patience` steps is stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FinishWatch {
+    patience: usize,
+    start: Option<usize>,
+    low: usize,
+    since_low: usize,
+    last: usize,
+}
+
+impl FinishWatch {
+    /// A watch over a finish that has not stepped yet.
+    pub fn new(patience: usize) -> Self {
+        FinishWatch {
+            patience,
+            start: None,
+            low: usize::MAX,
+            since_low: 0,
+            last: 0,
+        }
+    }
+
+    /// Records a step's intersecting-pair count (counted at the step's start).
+    pub fn offer(&mut self, pairs: usize) {
+        self.start.get_or_insert(pairs);
+        if pairs < self.low {
+            self.low = pairs;
+            self.since_low = 0;
+        } else {
+            self.since_low += 1;
+        }
+        self.last = pairs;
+    }
+
+    /// Whether the finish should stop now.
+    pub fn gives_up(&self) -> bool {
+        self.start
+            .is_some_and(|s| self.since_low >= self.patience && self.last > s)
     }
 }
 
@@ -179,6 +227,8 @@ pub struct CombinedResolver {
     /// The run's fewest-pair state after its first step, any stage (a second round may start
     /// there); not kept once an obstacle has moved.
     fewest: Fewest,
+    /// Whether the running finish should give up.
+    finish_watch: FinishWatch,
     /// Cha & Ko + finish rounds started.
     rounds: usize,
     /// Whether the first Cha & Ko stage started from the pre-pass's state (not the input).
@@ -209,6 +259,7 @@ impl CombinedResolver {
         } else {
             Active::ChaKo(Box::new(Resolver::new(garment, cp)?))
         };
+        let finish_watch = FinishWatch::new(params.finish_stuck_steps);
         Ok(CombinedResolver {
             garment: garment.clone(),
             am,
@@ -221,6 +272,7 @@ impl CombinedResolver {
             since_best: 0,
             input_pairs: None,
             fewest: Fewest::new(true),
+            finish_watch,
             rounds: 1,
             from_prepass: false,
             next_obstacle: Vec::new(),
@@ -380,7 +432,7 @@ impl CombinedResolver {
         let g = self.garment.with_positions(&positions)?;
         let mut wp = self.params.wicke.clone();
         wp.max_steps = steps + 1;
-        wp.stuck_steps = self.params.finish_stuck_steps;
+        self.finish_watch = FinishWatch::new(self.params.finish_stuck_steps);
         let mut r = WickeResolver::new(&g, &self.am, wp)?;
         self.configure(r.simulator_mut())?;
         self.active = Active::Wicke(Stage::Finish, Box::new(r));
@@ -432,7 +484,11 @@ impl CombinedResolver {
                 Active::Done(..) => return Ok(None),
                 Active::Wicke(stage, w) => {
                     let stage = *stage;
-                    if let Some(o) = w.stop_reason() {
+                    let gave_up = stage == Stage::Finish && self.finish_watch.gives_up();
+                    let stop = w
+                        .stop_reason()
+                        .or(gave_up.then_some(super::wicke::WickeOutcome::Stuck));
+                    if let Some(o) = stop {
                         let pos = w.simulator().positions().to_vec();
                         match (stage, o) {
                             (_, super::wicke::WickeOutcome::Resolved) => {
@@ -479,6 +535,9 @@ impl CombinedResolver {
                             self.since_best += 1;
                         }
                     }
+                    if stage == Stage::Finish {
+                        self.finish_watch.offer(s.intersecting_pairs);
+                    }
                     self.offer_fewest(k, s.intersecting_pairs, before);
                     let rec = CombinedStep::Wicke(stage, s);
                     self.history.push(rec.clone());
@@ -513,5 +572,77 @@ impl CombinedResolver {
             on_step(&s);
         }
         Ok(self.stop_reason().unwrap_or(CombinedOutcome::Unresolved))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::FinishWatch;
+
+    /// The step at which the watch gives up over `counts` (pairs at each finish step's start),
+    /// or `None`.
+    fn gives_up_at(patience: usize, counts: &[usize]) -> Option<usize> {
+        let mut w = FinishWatch::new(patience);
+        for (i, &c) in counts.iter().enumerate() {
+            if w.gives_up() {
+                return Some(i);
+            }
+            w.offer(c);
+        }
+        w.gives_up().then_some(counts.len())
+    }
+
+    /// Against a brute-force reading of the rule: give up before step `i` when the last new
+    /// low lies `patience` or more steps back and the count of step `i - 1` exceeds step 0's.
+    #[test]
+    fn gives_up_exactly_where_the_rule_says() {
+        let oracle = |patience: usize, c: &[usize]| {
+            (1..=c.len()).find(|&i| {
+                let low_at = (0..i).filter(|&j| c[..j].iter().all(|&x| c[j] < x)).max();
+                low_at.is_some_and(|l| i - 1 - l >= patience) && c[i - 1] > c[0]
+            })
+        };
+        let mut seed = 7u64;
+        for _ in 0..2000 {
+            let n = 1 + (seed % 60) as usize;
+            let c: Vec<usize> = (0..n)
+                .map(|_| {
+                    seed = seed
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    ((seed >> 33) % 12) as usize
+                })
+                .collect();
+            let patience = (seed % 7) as usize;
+            assert_eq!(
+                gives_up_at(patience, &c),
+                oracle(patience, &c),
+                "{patience} {c:?}"
+            );
+        }
+    }
+
+    /// The finishes of the exploded seeds measured in session 33 (pair counts per step): a
+    /// plateau at the starting count (seed 58) and a brief rise that resolves (seed 41) run on;
+    /// counts multiplied and not brought back (seed 94, dress4) stop after 30 steps.
+    #[test]
+    fn measured_finishes() {
+        let mut seed58 = vec![5, 15, 15];
+        seed58.extend([5; 34]);
+        assert_eq!(gives_up_at(30, &seed58), None);
+        let mut seed41 = vec![5, 6, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4];
+        seed41.extend([23; 8]);
+        seed41.extend([19, 4, 4, 4, 4]);
+        assert_eq!(gives_up_at(30, &seed41), None);
+        let seed94: Vec<usize> = [4, 9, 17, 21, 25, 27, 24, 40]
+            .into_iter()
+            .chain(std::iter::repeat_n(27, 60))
+            .collect();
+        assert_eq!(gives_up_at(30, &seed94), Some(31));
+        let dress4: Vec<usize> = [290, 458, 508, 812, 1133]
+            .into_iter()
+            .chain(std::iter::repeat_n(2100, 60))
+            .collect();
+        assert_eq!(gives_up_at(30, &dress4), Some(31));
     }
 }
