@@ -748,13 +748,7 @@ impl Simulator {
     /// triangles at them get non-finite energies (a blown-up step must be measurable, not an
     /// error). A wrong number of positions is an error.
     pub fn stretch_energies(&self, x: &[Vec3]) -> Result<Vec<f64>> {
-        if x.len() != self.x.len() {
-            return Err(Error::Parameter(format!(
-                "positions: {} given, the cloth has {} vertices",
-                x.len(),
-                self.x.len()
-            )));
-        }
+        check_len("positions", x, self.x.len())?;
         Ok(self.triangle_energies(x))
     }
 
@@ -1829,13 +1823,19 @@ struct PdState {
     factored_values: Vec<f64>,
 }
 
-fn check_vectors(what: &str, x: &[Vec3], n: usize) -> Result<()> {
+/// `x` has one entry per cloth vertex (`n`).
+fn check_len(what: &str, x: &[Vec3], n: usize) -> Result<()> {
     if x.len() != n {
         return Err(Error::Parameter(format!(
             "{what}: {} given, the cloth has {n} vertices",
             x.len()
         )));
     }
+    Ok(())
+}
+
+fn check_vectors(what: &str, x: &[Vec3], n: usize) -> Result<()> {
+    check_len(what, x, n)?;
     if let Some(i) = x.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
         return Err(Error::Parameter(format!("{what}: entry {i} is not finite")));
     }
