@@ -20,7 +20,7 @@
 //!    multiplied it (exploded seed 73: 15 -> 979 pairs; dress4 sagged 25 steps: 290 -> 2,400
 //!    pairs at up to 2 s per step), so waiting out Wicke's own 100 stuck steps only costs
 //!    time; a finish that holds its starting count may still get there (exploded seed 58: 5
-//!    pairs for 36 steps, then clean).
+//!    pairs, 15 for two steps, for 37 steps, then clean).
 //! 4. **Rounds**: if the finish also ends with tanglements left, Cha & Ko runs again, then the
 //!    finish again, up to `rounds` (2) rounds of stages 2-3 in all. The second round starts
 //!    from the input when the first started from the pre-pass's state (and no obstacle has
@@ -32,7 +32,7 @@
 //!    second starts from the state with the fewest intersecting pairs the run has seen after
 //!    its first step (any stage), if that has fewer pairs than where the finish stopped, else
 //!    from where the finish stopped: on dress4 sagged 25 steps the finish had taken the cloth
-//!    from 290 to 2,412 pairs, and the second round went on from there, 1-4 s per step, to no
+//!    from 290 to 2,412 pairs, and the second round went on from there, 0.8-8 s per step, to no
 //!    avail.
 //!
 //! Each stage runs its own simulator, built from the garment at the previous stage's positions
