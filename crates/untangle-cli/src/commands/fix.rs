@@ -117,6 +117,11 @@ pub struct Args {
     /// heuristic, are coloured red and pulled out like any other region).
     #[arg(long)]
     pub no_bli_regions: bool,
+    /// Keep the epsilon_RG band at the loop vertex of a BLI path whose loop vertex is interior
+    /// (the paper's m-CCH; by default, once such a path lies in the vertex's fan, red edges may
+    /// pass the edges at that vertex, so the path can vanish there).
+    #[arg(long)]
+    pub no_open_bli_loops: bool,
     /// Give no region to the paths Wicke's rules leave without one (by default, on a garment,
     /// the cloth that has passed into another tube of it, found by the generalized winding
     /// number, is coloured red and pulled out: a leg's wall inside the other leg, say).
@@ -260,6 +265,7 @@ impl Args {
             p.cha_ko.pull_order = untangle::methods::cha_ko::PullOrder::FewestOutmostNeighbours;
         }
         p.analysis.bli_regions_red = !self.no_bli_regions;
+        p.cha_ko.open_bli_loops = !self.no_open_bli_loops;
         p.analysis.winding_regions = !self.no_winding_regions;
         match self.integrator {
             LoopIntegrator::BaraffWitkin => p.sim.integrator = Integrator::BaraffWitkin,
@@ -732,6 +738,7 @@ pub(crate) fn step_json(s: &LoopStep) -> serde_json::Value {
         "tanglements": s.tanglements,
         "regionless_red": s.regionless_red,
         "slit_red": s.slit_red,
+        "open_bli_loops": s.open_bli_loops,
         "winding_paths": s.winding_paths,
         "pulls": s.uv.pulls_started + s.uv.pulls_continued,
         "pulls_started": s.uv.pulls_started,

@@ -83,6 +83,13 @@ pub struct Params {
     /// Which edge-edge pairs with a *mixed* edge (one red, one green end) m-CCH lets cross
     /// (experiment, ours; see [`MixedEdges`]). Default: the paper's (such an edge is red).
     pub mixed_edges: MixedEdges,
+    /// Open BLI loops (ours, on by default; used by [`super::Resolver`], see
+    /// [`super::policy::open_bli_loops`]): when a BLI path with an interior loop vertex lies
+    /// in that vertex's fan, a red edge may pass the edges at the vertex in m-CCH. Off, the
+    /// `epsilon_RG` band along the pierced triangle's contour (Sec. 5.2, Fig. 7b) keeps the
+    /// path's piercing point away from the loop vertex, the only place where such a path can
+    /// vanish.
+    pub open_bli_loops: bool,
     /// Trial step (ours, see [`super::trial`]; used by [`super::Resolver`]): after a simulator
     /// step that turned a green vertex red (against Sec. 7's theorem, part 1), roll it back and
     /// retry it with the red-red pairs of the new crossings at those vertices held apart, up to
@@ -135,6 +142,7 @@ impl Default for Params {
             avoid_loop_pull_targets_at_start: false,
             pull_across_cut_edges: true,
             mixed_edges: MixedEdges::Red,
+            open_bli_loops: true,
             trial_retries: 0,
             trial_block: TrialBlock::GreenGreen,
             trial_trigger: TrialTrigger::CountIncrease,

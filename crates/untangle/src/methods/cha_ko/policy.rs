@@ -15,7 +15,7 @@
 //! Pairs with an obstacle (body) primitive are not part of the method: the body is never
 //! coloured, and such pairs always use the ordinary `epsilon`.
 
-use crate::analysis::{AnalysisMesh, Coloring, ObjectKind};
+use crate::analysis::{Analysis, AnalysisMesh, Coloring, ObjectKind, PathKind};
 use crate::sim::{Contact, ContactPolicy};
 
 /// Colour class of an elementary pair.
@@ -84,6 +84,71 @@ pub struct MchPolicy<'a> {
     /// `subject` (the running operations' subjects) keeps `t` instead of `eps_rg` (use
     /// `eps <= t <= eps_rg`), so the subject's own red-green pairs hold a pull back less.
     pub thin_rg: Option<(&'a [bool], f64)>,
+    /// Edges a red edge may pass whatever their colour (ours: the edges at the open BLI loops
+    /// of [`open_bli_loops`]; `None`: none). A pair of an open edge and a red edge is red-red;
+    /// every other pair keeps its colour.
+    pub open_edges: Option<Vec<bool>>,
+}
+
+/// The interior loop vertices of the BLI paths of `a` that lie in their loop vertex's fan
+/// (ours), sorted: where m-CCH may open the loop ([`edges_at`], [`MchPolicy::open_edges`]).
+///
+/// A BLI path (Wicke et al. 2006, Sec. 4.1) runs from the cloth's boundary, where a boundary
+/// edge pierces a triangle `T`, to a loop vertex `v`, a corner of `T`. When `v` lies on the
+/// boundary, half of the path separates the cloth and the inside region pulls out like any
+/// other. When `v` is interior, nothing separates, and the path can only vanish by shrinking
+/// into `v`: its piercing point must reach the corner `v` of `T`. m-CCH keeps a red edge
+/// `epsilon_RG` away from the green edges of `T` (Sec. 5.2, Fig. 7b), so the point can come no
+/// nearer to `v` than that band, and every pull or shrink toward `v` saturates (dress4 sagged
+/// 120 steps ended with one such pair, BENCHMARKS.md). Opening `v`'s edges lets the piercing
+/// (red) edge pass them; every other pair keeps its colour.
+///
+/// Only for the last stretch: a loop vertex is listed when every triangle its path crosses has
+/// it as a corner (the piercing point is in `v`'s fan). A longer path is still being pulled out
+/// by its region, and opening its loop vertex then only lets red edges through cloth that is
+/// not about to untangle there (the tangled pants, sagged 25 steps, took 242 steps instead of
+/// 168 when every interior BLI loop was opened; BENCHMARKS.md, session 34).
+pub fn open_bli_loops(mesh: &AnalysisMesh, a: &Analysis) -> Vec<u32> {
+    let topo = &mesh.topology;
+    let mut loops = Vec::new();
+    for p in &a.paths {
+        if p.kind != PathKind::BoundaryLoopInside
+            || mesh.objects[p.object as usize].kind != ObjectKind::Cloth
+        {
+            continue;
+        }
+        for &v in p.loop_vertices() {
+            // Interior, and every piece in a triangle at `v`.
+            let at_v = |piece: &u32| {
+                let seg = &a.segments[(piece / 2) as usize];
+                mesh.triangles[seg.triangles[(piece % 2) as usize] as usize].contains(&v)
+            };
+            if !topo.boundary_vertex[v as usize] && p.pieces().iter().all(at_v) {
+                loops.push(v);
+            }
+        }
+    }
+    loops.sort_unstable();
+    loops.dedup();
+    loops
+}
+
+/// Per edge of `mesh`'s topology, whether an end is in `vertices` (`None` when `vertices` is
+/// empty): the open edges of [`MchPolicy::open_edges`] for the loops of [`open_bli_loops`].
+pub fn edges_at(mesh: &AnalysisMesh, vertices: &[u32]) -> Option<Vec<bool>> {
+    if vertices.is_empty() {
+        return None;
+    }
+    let topo = &mesh.topology;
+    let mut open = vec![false; topo.num_edges()];
+    for &v in vertices {
+        for &w in topo.vertex_neighbors.row(v as usize) {
+            if let Some(e) = topo.edge_between(v, w) {
+                open[e as usize] = true;
+            }
+        }
+    }
+    Some(open)
 }
 
 impl<'a> MchPolicy<'a> {
@@ -96,6 +161,7 @@ impl<'a> MchPolicy<'a> {
             eps_rg,
             mixed_edges: MixedEdges::Red,
             thin_rg: None,
+            open_edges: None,
         }
     }
 
@@ -145,7 +211,10 @@ impl<'a> MchPolicy<'a> {
                 }
             }
         };
-        (r0, r1)
+        match &self.open_edges {
+            Some(open) if (r0 && open[e1 as usize]) || (r1 && open[e0 as usize]) => (true, true),
+            _ => (r0, r1),
+        }
     }
 
     fn vertex_is_cloth(&self, v: u32) -> bool {
@@ -301,6 +370,132 @@ mod tests {
         // Both kinds occur: the subject's pairs thin, the other red vertex's at eps_RG
         // (vertex 24 is a green subject: its pairs are never thin).
         assert!(thin_pairs > 0 && rg_pairs > 0, "{thin_pairs} {rg_pairs}");
+    }
+
+    /// [`open_bli_loops`] and [`edges_at`] against a per-edge reading of the rule (an edge is open when an end
+    /// is the interior loop vertex of a BLI path whose every triangle has that vertex as a
+    /// corner), on BLI with an interior loop vertex at four refinement levels (the unrefined
+    /// core's path lies in the loop vertex's fan, the refined ones' do not); BLI with a boundary
+    /// loop vertex and CLOSED have no open edges.
+    #[test]
+    fn open_bli_loops_are_interior_bli_loop_vertices_with_their_path_in_the_fan() {
+        use crate::analysis::analyze;
+        use crate::scenes::rudimentary;
+        let mut opened = Vec::new();
+        for lv in 0..4 {
+            let s = rudimentary::bli_interior(lv);
+            let (am, pos) = AnalysisMesh::single(&s.meshes[0]).unwrap();
+            let a = analyze(&am, &pos).unwrap();
+            assert_eq!(a.paths.len(), 1, "level {lv}");
+            assert_eq!(a.paths[0].kind, PathKind::BoundaryLoopInside, "level {lv}");
+            let topo = &am.topology;
+            let mut loops: Vec<u32> = Vec::new();
+            for p in &a.paths {
+                for &v in p.loop_vertices() {
+                    let in_fan = p.pieces().iter().all(|&piece| {
+                        let t = a.segments[(piece / 2) as usize].triangles[(piece % 2) as usize];
+                        am.triangles[t as usize].contains(&v)
+                    });
+                    if p.kind == PathKind::BoundaryLoopInside
+                        && !topo.boundary_vertex[v as usize]
+                        && in_fan
+                    {
+                        loops.push(v);
+                    }
+                }
+            }
+            let want: Vec<bool> = topo
+                .edges
+                .iter()
+                .map(|e| e.iter().any(|v| loops.contains(v)))
+                .collect();
+            assert_eq!(open_bli_loops(&am, &a), loops, "level {lv}");
+            let got = edges_at(&am, &open_bli_loops(&am, &a));
+            if loops.is_empty() {
+                assert_eq!(got, None, "level {lv}");
+                continue;
+            }
+            let got = got.expect("open edges");
+            assert_eq!(got, want, "level {lv}");
+            assert_eq!(
+                got.iter().filter(|&&o| o).count(),
+                topo.vertex_neighbors.row(loops[0] as usize).len(),
+                "level {lv}: one loop vertex, its edges"
+            );
+            opened.push(lv);
+        }
+        assert_eq!(opened, vec![0], "the unrefined core's path lies in the fan");
+        for name in ["bli", "closed"] {
+            let s = crate::scenes::by_name(name, None, 1).unwrap();
+            let m = AnalysisMesh::merge_cloth(&s.meshes).unwrap();
+            let (am, pos) = AnalysisMesh::single(&m).unwrap();
+            let a = analyze(&am, &pos).unwrap();
+            assert!(!a.is_clean(), "{name}");
+            assert!(open_bli_loops(&am, &a).is_empty(), "{name}");
+        }
+    }
+
+    /// With open edges, a pair of a red edge and an open edge crosses (red-red); every other
+    /// edge-edge pair and every vertex-triangle pair keeps its colour. Oracle: the colour table
+    /// over all pairs of a 5 x 5 grid with red vertex 6 and the edges at vertex 12 open (vertex
+    /// 12 is a neighbour of 6, so one open edge is red itself).
+    #[test]
+    fn a_red_edge_passes_open_edges_and_nothing_else_changes() {
+        use crate::analysis::ObjectKind;
+        let m = crate::scenes::handkerchief("grid", 4, 4, 1.0, 1.0, |p| {
+            crate::geom::Vec3::new(p.x, p.y, 0.0)
+        });
+        let (am, _) = AnalysisMesh::new(&[(&m, ObjectKind::Cloth)]).unwrap();
+        let red_vertex: Vec<bool> = (0..25).map(|v| v == 6).collect();
+        let edges = am.topology.edges.clone();
+        let red_edge: Vec<bool> = edges
+            .iter()
+            .map(|e| red_vertex[e[0] as usize] || red_vertex[e[1] as usize])
+            .collect();
+        let red_triangle: Vec<bool> = am
+            .triangles
+            .iter()
+            .map(|t| t.iter().any(|&v| red_vertex[v as usize]))
+            .collect();
+        let coloring = Coloring {
+            red_vertex: red_vertex.clone(),
+            red_edge: red_edge.clone(),
+            red_triangle: red_triangle.clone(),
+            ..Coloring::default()
+        };
+        let open: Vec<bool> = edges.iter().map(|e| e.contains(&12)).collect();
+        assert!((0..edges.len()).any(|e| open[e] && red_edge[e]));
+        assert!((0..edges.len()).any(|e| open[e] && !red_edge[e]));
+        let (eps, eps_rg) = (1e-6, 0.1);
+        let plain = MchPolicy::new(&am, &coloring, eps, eps_rg);
+        let mut p = plain.clone();
+        p.open_edges = Some(open.clone());
+        let mut opened = 0;
+        for i in 0..edges.len() {
+            for j in 0..edges.len() {
+                let crosses = (red_edge[i] && open[j]) || (red_edge[j] && open[i]);
+                let colour = if crosses {
+                    PairColour::RedRed
+                } else {
+                    pair_colour(red_edge[i], red_edge[j])
+                };
+                let want = rule(colour, eps, eps_rg);
+                let (i, j) = (i as u32, j as u32);
+                assert_eq!(p.edge_edge(i, j), want, "e {i} f {j}");
+                assert_eq!(
+                    p.edge_edge_by_vertices(edges[i as usize], edges[j as usize]),
+                    want
+                );
+                opened += (want != plain.edge_edge(i, j)) as usize;
+            }
+        }
+        // Some red-green pairs (a red edge against a green open one) now cross.
+        assert!(opened > 0);
+        for v in 0..25u32 {
+            for t in 0..am.triangles.len() as u32 {
+                assert_eq!(p.vertex_triangle(v, t), plain.vertex_triangle(v, t));
+            }
+        }
     }
 
     #[test]

@@ -156,6 +156,9 @@ pub struct LoopStep {
     /// Slit ridge vertices coloured red this step (ours, [`super::slit`]; 0 when none).
     /// `red_vertices` includes them.
     pub slit_red: usize,
+    /// BLI loop vertices whose edges m-CCH opened this step (ours,
+    /// [`super::policy::open_bli_loops`]; 0 when none).
+    pub open_bli_loops: usize,
     /// Paths whose inside region this step is a winding region (ours,
     /// [`crate::analysis::regions::RegionFinder::winding_region`]).
     pub winding_paths: usize,
@@ -265,6 +268,8 @@ pub struct Resolver {
     schedule: Option<IntegratorSchedule>,
     /// [`divergence::energy_floor`] of the garment.
     energy_floor: f64,
+    /// The BLI loop vertices m-CCH opens in the current step ([`Params::open_bli_loops`]).
+    open_loops: Vec<u32>,
 }
 
 /// Sets the loop simulator's integrator, with the loop's CG cap of projective global steps
@@ -309,6 +314,7 @@ impl Resolver {
             blocked_for: Default::default(),
             schedule,
             energy_floor,
+            open_loops: Vec::new(),
         })
     }
 
@@ -399,6 +405,12 @@ impl Resolver {
             self.sim.set_rest_uv(self.chako.current_uv())?;
         }
         let t2 = Instant::now();
+        self.open_loops = if !clean && self.chako.params().open_bli_loops {
+            super::policy::open_bli_loops(&self.am, &a)
+        } else {
+            Vec::new()
+        };
+        let open_bli_loops = self.open_loops.len();
         let guard = self.params.divergence.filter(|_| !clean);
         let snap = guard.map(|_| self.sim.snapshot());
         let (mut sr, mut trial) = self.simulate(&a)?;
@@ -462,6 +474,7 @@ impl Resolver {
             intersecting_pairs: a.segments.len(),
             regionless_red,
             slit_red,
+            open_bli_loops,
             winding_paths: a.winding_region_paths.len(),
             red_vertices: a.coloring.num_red_vertices(),
             red_triangles: a.coloring.num_red_triangles(),
@@ -503,6 +516,7 @@ impl Resolver {
         }
         let subjects: Vec<bool>;
         let mut policy = self.chako.contact_policy(&self.am, a);
+        policy.open_edges = super::policy::edges_at(&self.am, &self.open_loops);
         if self.params.subject_rg_scale != 1.0 {
             subjects = subject_flags(self.chako.operations(), self.sim.positions().len());
             let t =
@@ -570,6 +584,7 @@ impl Resolver {
             intersecting_pairs: prev.map_or(0, |s| s.intersecting_pairs),
             regionless_red: 0,
             slit_red: 0,
+            open_bli_loops: 0,
             winding_paths: 0,
             red_vertices: prev.map_or(0, |s| s.red_vertices),
             red_triangles: prev.map_or(0, |s| s.red_triangles),
