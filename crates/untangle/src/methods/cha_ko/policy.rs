@@ -303,33 +303,47 @@ mod tests {
     use super::*;
     use crate::analysis::{AnalysisMesh, Coloring};
 
-    /// Thin red-green pairs at subjects, against a brute-force oracle over every vertex-triangle
-    /// and edge-edge pair of a 5 x 5 vertex grid with red vertices 6 (a subject) and 18 (not
-    /// one).
-    #[test]
-    fn thin_red_green_pairs_only_where_the_red_side_has_a_subject() {
+    /// A flat 5 x 5 vertex grid and the colouring of Sec. 3 with the vertices `red` red and
+    /// no crossings (an edge or triangle is red when a vertex of it is).
+    fn grid_coloring(red: &[u32]) -> (AnalysisMesh, Coloring) {
         use crate::analysis::ObjectKind;
         let m = crate::scenes::handkerchief("grid", 4, 4, 1.0, 1.0, |p| {
             crate::geom::Vec3::new(p.x, p.y, 0.0)
         });
         let (am, _) = AnalysisMesh::new(&[(&m, ObjectKind::Cloth)]).unwrap();
-        let red_vertex: Vec<bool> = (0..25).map(|v| v == 6 || v == 18).collect();
-        let edges = am.topology.edges.clone();
-        let red_edge: Vec<bool> = edges
+        let red_vertex: Vec<bool> = (0..25).map(|v| red.contains(&v)).collect();
+        let red_edge = am
+            .topology
+            .edges
             .iter()
             .map(|e| red_vertex[e[0] as usize] || red_vertex[e[1] as usize])
             .collect();
-        let red_triangle: Vec<bool> = am
+        let red_triangle = am
             .triangles
             .iter()
             .map(|t| t.iter().any(|&v| red_vertex[v as usize]))
             .collect();
         let coloring = Coloring {
-            red_vertex: red_vertex.clone(),
-            red_edge: red_edge.clone(),
-            red_triangle: red_triangle.clone(),
+            red_vertex,
+            red_edge,
+            red_triangle,
             ..Coloring::default()
         };
+        (am, coloring)
+    }
+
+    /// Thin red-green pairs at subjects, against a brute-force oracle over every vertex-triangle
+    /// and edge-edge pair of a 5 x 5 vertex grid with red vertices 6 (a subject) and 18 (not
+    /// one).
+    #[test]
+    fn thin_red_green_pairs_only_where_the_red_side_has_a_subject() {
+        let (am, coloring) = grid_coloring(&[6, 18]);
+        let (red_vertex, red_edge, red_triangle) = (
+            &coloring.red_vertex,
+            &coloring.red_edge,
+            &coloring.red_triangle,
+        );
+        let edges = am.topology.edges.clone();
         let subject: Vec<bool> = (0..25).map(|v| v == 6 || v == 24).collect();
         let (eps, eps_rg, thin) = (1e-6, 0.1, 0.03);
         let mut p = MchPolicy::new(&am, &coloring, eps, eps_rg);
@@ -441,28 +455,9 @@ mod tests {
     /// 12 is a neighbour of 6, so one open edge is red itself).
     #[test]
     fn a_red_edge_passes_open_edges_and_nothing_else_changes() {
-        use crate::analysis::ObjectKind;
-        let m = crate::scenes::handkerchief("grid", 4, 4, 1.0, 1.0, |p| {
-            crate::geom::Vec3::new(p.x, p.y, 0.0)
-        });
-        let (am, _) = AnalysisMesh::new(&[(&m, ObjectKind::Cloth)]).unwrap();
-        let red_vertex: Vec<bool> = (0..25).map(|v| v == 6).collect();
+        let (am, coloring) = grid_coloring(&[6]);
+        let red_edge = &coloring.red_edge;
         let edges = am.topology.edges.clone();
-        let red_edge: Vec<bool> = edges
-            .iter()
-            .map(|e| red_vertex[e[0] as usize] || red_vertex[e[1] as usize])
-            .collect();
-        let red_triangle: Vec<bool> = am
-            .triangles
-            .iter()
-            .map(|t| t.iter().any(|&v| red_vertex[v as usize]))
-            .collect();
-        let coloring = Coloring {
-            red_vertex: red_vertex.clone(),
-            red_edge: red_edge.clone(),
-            red_triangle: red_triangle.clone(),
-            ..Coloring::default()
-        };
         let open: Vec<bool> = edges.iter().map(|e| e.contains(&12)).collect();
         assert!((0..edges.len()).any(|e| open[e] && red_edge[e]));
         assert!((0..edges.len()).any(|e| open[e] && !red_edge[e]));
