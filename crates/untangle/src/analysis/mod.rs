@@ -80,6 +80,12 @@ impl Analysis {
         v
     }
 
+    /// The triangle piece `piece` of a path lies in ([`paths::piece_triangle`]).
+    #[inline]
+    pub fn piece_triangle(&self, piece: u32) -> u32 {
+        self.segments[(piece / 2) as usize].triangles[(piece % 2) as usize]
+    }
+
     /// Sorted, distinct loop vertices of all paths (Wicke et al. 2006, Sec. 4.1: where a path
     /// meets itself or its corresponding path).
     pub fn loop_vertices(&self) -> Vec<u32> {

@@ -268,8 +268,6 @@ pub struct Resolver {
     schedule: Option<IntegratorSchedule>,
     /// [`divergence::energy_floor`] of the garment.
     energy_floor: f64,
-    /// The BLI loop vertices m-CCH opens in the current step ([`Params::open_bli_loops`]).
-    open_loops: Vec<u32>,
 }
 
 /// Sets the loop simulator's integrator, with the loop's CG cap of projective global steps
@@ -314,7 +312,6 @@ impl Resolver {
             blocked_for: Default::default(),
             schedule,
             energy_floor,
-            open_loops: Vec::new(),
         })
     }
 
@@ -405,15 +402,16 @@ impl Resolver {
             self.sim.set_rest_uv(self.chako.current_uv())?;
         }
         let t2 = Instant::now();
-        self.open_loops = if !clean && self.chako.params().open_bli_loops {
+        let open_loops = if !clean && self.chako.params().open_bli_loops {
             super::policy::open_bli_loops(&self.am, &a)
         } else {
             Vec::new()
         };
-        let open_bli_loops = self.open_loops.len();
+        let open_bli_loops = open_loops.len();
+        let open_edges = super::policy::edges_at(&self.am, &open_loops);
         let guard = self.params.divergence.filter(|_| !clean);
         let snap = guard.map(|_| self.sim.snapshot());
-        let (mut sr, mut trial) = self.simulate(&a)?;
+        let (mut sr, mut trial) = self.simulate(&a, open_edges.as_deref())?;
         let mut divergence = DivergenceReport::default();
         if let (Some(g), Some(snap)) = (guard, snap) {
             for round in 0..=g.rounds {
@@ -445,7 +443,7 @@ impl Resolver {
                 divergence.given_up.extend(ids);
                 self.sim.restore(&snap)?;
                 self.sim.set_rest_uv(self.chako.current_uv())?;
-                (sr, trial) = self.simulate(&a)?;
+                (sr, trial) = self.simulate(&a, open_edges.as_deref())?;
             }
         }
         let t3 = Instant::now();
@@ -501,8 +499,13 @@ impl Resolver {
     }
 
     /// The simulator step of a pass with the m-CCH policy of `a` (with the heavy subjects and
-    /// thin red-green pairs of the operations in progress, and the trial step when on).
-    fn simulate(&mut self, a: &Analysis) -> Result<(StepReport, TrialReport)> {
+    /// thin red-green pairs of the operations in progress, the open BLI loops' `open_edges`,
+    /// and the trial step when on).
+    fn simulate(
+        &mut self,
+        a: &Analysis,
+        open_edges: Option<&[bool]>,
+    ) -> Result<(StepReport, TrialReport)> {
         if self.params.heavy_subjects != 1.0 {
             let n = self.sim.positions().len();
             let f = collision_mass_factors(
@@ -516,7 +519,7 @@ impl Resolver {
         }
         let subjects: Vec<bool>;
         let mut policy = self.chako.contact_policy(&self.am, a);
-        policy.open_edges = super::policy::edges_at(&self.am, &self.open_loops);
+        policy.open_edges = open_edges;
         if self.params.subject_rg_scale != 1.0 {
             subjects = subject_flags(self.chako.operations(), self.sim.positions().len());
             let t =

@@ -25,7 +25,7 @@ pub fn doubled_edges(mesh: &AnalysisMesh, analysis: &Analysis, i: usize) -> Vec<
     let mut seen: Vec<u32> = Vec::new();
     for &piece in analysis.paths[i].pieces() {
         let seg = &analysis.segments[(piece / 2) as usize];
-        let own = mesh.triangles[seg.triangles[(piece % 2) as usize] as usize];
+        let own = mesh.triangles[analysis.piece_triangle(piece) as usize];
         for end in seg.ends {
             if let End::Crossing(c) = end {
                 let [a, b] = mesh.topology.edges[analysis.crossings[c as usize].edge as usize];
