@@ -253,12 +253,8 @@ fn bli_with_an_interior_loop_vertex_resolves_through_its_open_loop() {
     assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");
     let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
     assert!(analyze(&am, r.simulator().positions()).unwrap().is_clean());
-    // The one loop vertex opened, from the first step, and only while the pair was left.
-    let h = r.history();
-    assert_eq!(h[0].open_bli_loops, 1);
-    assert!(h
-        .iter()
-        .all(|s| s.open_bli_loops <= 1 && (s.open_bli_loops == 0 || s.intersecting_pairs > 0)));
+    // The one loop vertex opened from the first step.
+    assert_eq!(r.history()[0].open_bli_loops, 1);
     let mut p = params(400);
     p.cha_ko.open_bli_loops = false;
     let closed = Resolver::new(&g, p).unwrap().run(|_| {}).unwrap();
