@@ -640,9 +640,11 @@ fn open_bli_loops_resolve_the_one_pair_bli() {
         d.path(),
     );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // A running BLI sector opens its loop vertex too, so both are turned off.
     for (flag, code) in [(None, 0), (Some("--no-open-bli-loops"), 1)] {
         let mut args = vec!["fix", "bli.obj", "-o", "out.obj", "--json", "r.json"];
         args.extend(flag);
+        args.extend(flag.map(|_| "--no-bli-sectors"));
         let o = untangle(&args, d.path());
         assert_eq!(o.status.code(), Some(code), "{flag:?}: {}", stdout(&o));
         let r = json(&d.path().join("r.json"));
@@ -663,5 +665,39 @@ fn open_bli_loops_resolve_the_one_pair_bli() {
         if code == 1 {
             assert!(stdout(&o).contains("BLI"), "{}", stdout(&o));
         }
+    }
+}
+
+#[test]
+fn bli_sectors_resolve_the_refined_interior_bli() {
+    let d = tempfile::tempdir().unwrap();
+    let o = untangle(
+        &["scene", "bli-interior", "--size", "3", "-o", "bli.obj"],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    for (flag, code) in [(None, 0), (Some("--no-bli-sectors"), 1)] {
+        let mut args = vec!["fix", "bli.obj", "-o", "out.obj", "--json", "r.json"];
+        args.extend(flag);
+        let o = untangle(&args, d.path());
+        assert_eq!(o.status.code(), Some(code), "{flag:?}: {}", stdout(&o));
+        let r = json(&d.path().join("r.json"));
+        assert_eq!(r["params"]["bli_sectors"], flag.is_none(), "{flag:?}");
+        let steps = r["steps"].as_array().unwrap();
+        let started: u64 = steps
+            .iter()
+            .map(|s| s["sectors_started"].as_u64().unwrap())
+            .sum();
+        let running = steps
+            .iter()
+            .filter(|s| s["sectors"].as_u64().unwrap() > 0)
+            .count();
+        assert_eq!(started > 0, flag.is_none(), "{flag:?}: {started} started");
+        assert!(
+            running as u64 >= started,
+            "{flag:?}: {running} steps with a sector"
+        );
+        let c = untangle(&["check", "out.obj"], d.path());
+        assert_eq!(c.status.code(), Some(code), "{flag:?}: {}", stdout(&c));
     }
 }

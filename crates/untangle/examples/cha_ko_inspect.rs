@@ -1,10 +1,12 @@
 //! Diagnostic: runs the Cha & Ko loop on a named scene and, at the listed steps, prints the
 //! red* triangles, their red edges, the crossings they take part in and the operations.
 //! `CHAKO_SLIT=0` runs the loop without slit ridges (`ResolveParams::slit_ridges`, on by
-//! default; the printed colouring is the plain analysis' either way).
+//! default; the printed colouring is the plain analysis' either way). `CHAKO_LOOP_ANALYSIS=1`
+//! prints the analysis with the loop's settings instead (BLI and winding regions coloured, as
+//! the loop sees them); `SCENE_SIZE=K` builds the scene at size / refinement level `K`.
 //!
 //! `cargo run --release -p untangle --example cha_ko_inspect -- cross 20,60,100 [seed]`
-use untangle::analysis::{analyze, AnalysisMesh};
+use untangle::analysis::{analyze, analyze_with, AnalysisMesh};
 use untangle::geom::Vec3;
 use untangle::mesh::Garment;
 use untangle::methods::cha_ko::{ResolveParams, Resolver};
@@ -20,13 +22,20 @@ fn main() {
     let seed: u64 = std::env::args()
         .nth(3)
         .map_or(1, |s| s.parse().expect("a seed"));
-    let scene = untangle::scenes::by_name(&which, None, seed).unwrap();
+    let scene = untangle::scenes::by_name(
+        &which,
+        std::env::var("SCENE_SIZE").ok().map(|s| s.parse().unwrap()),
+        seed,
+    )
+    .unwrap();
     let g = Garment::new(AnalysisMesh::merge_cloth(&scene.meshes).unwrap()).unwrap();
     let mut p = ResolveParams::default();
     p.sim.gravity = Vec3::zeros();
     if let Ok(v) = std::env::var("CHAKO_SLIT") {
         p.slit_ridges = v != "0";
     }
+    let aparams = p.analysis;
+    let loop_analysis = std::env::var("CHAKO_LOOP_ANALYSIS").is_ok_and(|v| v != "0");
     let mut r = Resolver::new(&g, p).unwrap();
     let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
     let topo = &g.topology;
@@ -34,7 +43,11 @@ fn main() {
     for i in 0..=last {
         if at.contains(&i) {
             let pos = r.simulator().positions().to_vec();
-            let a = analyze(&am, &pos).unwrap();
+            let a = if loop_analysis {
+                analyze_with(&am, &pos, &aparams).unwrap()
+            } else {
+                analyze(&am, &pos).unwrap()
+            };
             let c = &a.coloring;
             println!(
                 "=== step {i}: pairs {} red v {} outmost {:?} red* {:?}",

@@ -257,11 +257,43 @@ fn bli_with_an_interior_loop_vertex_resolves_through_its_open_loop() {
     assert_eq!(r.history()[0].open_bli_loops, 1);
     let mut p = params(400);
     p.cha_ko.open_bli_loops = false;
+    p.cha_ko.bli_sectors = false; // a running sector opens its loop vertex too
     let closed = Resolver::new(&g, p).unwrap().run(|_| {}).unwrap();
     assert_ne!(
         closed.outcome,
         Outcome::Resolved,
         "the case no longer needs open loops: pick a case that does"
+    );
+}
+
+#[test]
+fn refined_bli_with_an_interior_loop_vertex_resolves_through_its_sector() {
+    // The same BLI refined three times (217 vertices): the path crosses several triangles, so
+    // it never lies in the loop vertex's fan by itself, and the cone region's pulls move the
+    // loop vertex around. The sector operation (`bli_sectors`, the default) contracts the
+    // cloth around the boundary strand into the loop vertex and the loop resolves; without it
+    // the loop ends stuck with pairs left.
+    let g = scene_garment(&untangle::scenes::rudimentary::bli_interior(3));
+    let mut r = Resolver::new(&g, params(400)).unwrap();
+    let s = r.run(|_| {}).unwrap();
+    assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");
+    let (am, _) = AnalysisMesh::single(&g.mesh).unwrap();
+    assert!(analyze(&am, r.simulator().positions()).unwrap().is_clean());
+    assert!(r.history().iter().any(|h| h.uv.sectors_started > 0));
+    // Every sector operation ended, and the uv is back at its original values.
+    let log = r.chako().finesse_log();
+    assert!(log
+        .iter()
+        .filter(|f| f.kind == untangle::methods::cha_ko::OpKind::Sector)
+        .all(|f| f.restored_step.is_some()));
+    assert_eq!(r.chako().current_uv(), &g.uv().coords[..]);
+    let mut p = params(400);
+    p.cha_ko.bli_sectors = false;
+    let without = Resolver::new(&g, p).unwrap().run(|_| {}).unwrap();
+    assert_ne!(
+        without.outcome,
+        Outcome::Resolved,
+        "the case no longer needs sectors: pick a case that does"
     );
 }
 

@@ -1730,3 +1730,80 @@ fn the_cut_edge_rule_changes_nothing_on_the_papers_coloring() {
     }
     assert!(checked > 100, "{checked}");
 }
+
+#[test]
+fn a_bli_sector_starts_first_goes_on_while_its_path_lasts_and_is_revoked_after() {
+    // `bli_interior(0)`: one BLI path with interior loop vertex 0; the boundary edge 4-5 of
+    // triangle (0,4,5) pierces the wedge (0,1,2), (0,2,3). Its sector is (0,4,5) with its edge
+    // neighbours (0,3,4), (0,5,6): subjects 3, 4, 5, 6 toward 0, whose uv is the origin.
+    use untangle::analysis::{analyze, AnalysisMesh};
+    let scene = untangle::scenes::rudimentary::bli_interior(0);
+    let g = Garment::new(scene.meshes[0].clone()).unwrap();
+    let (am, pos) = AnalysisMesh::single(&g.mesh).unwrap();
+    let a = analyze(&am, &pos).unwrap();
+    let orig = g.uv().coords.clone();
+    let mut ck = ChaKo::new(&g, Params::default()).unwrap();
+    let gamma = Params::default().gamma;
+    for level in 1..=3u32 {
+        let r = ck.update_uv(&am, &a, &pos).unwrap();
+        assert_eq!(
+            (r.sectors_started, r.sectors_continued),
+            if level == 1 { (1, 0) } else { (0, 1) }
+        );
+        let op = ck
+            .operations()
+            .find(|o| o.kind == OpKind::Sector)
+            .expect("a sector operation");
+        assert_eq!((op.target, op.level), (0, level));
+        assert_eq!(op.subjects, vec![3, 4, 5, 6]);
+        // Every subject's copy at gamma^level of its original uv (anchor: the origin); the
+        // loop vertex and the pierced wedge's far corners 1, 2 stay.
+        let s = gamma.powi(level as i32);
+        for v in 0..7usize {
+            let want = if (3..=6).contains(&v) {
+                orig[v] * s
+            } else {
+                orig[v]
+            };
+            assert!(
+                (ck.current_uv()[v] - want).norm() < 1e-12,
+                "v {v} level {level}"
+            );
+        }
+        // The sector's subjects are held: no pull or shrink of the colouring took them.
+        for o in ck.operations().filter(|o| o.kind != OpKind::Sector) {
+            assert!(o.subjects.iter().all(|w| !(3..=6).contains(w)), "{o:?}");
+        }
+    }
+    // The path gone (the flat layout as world shape: nothing intersects), the sector is no
+    // longer warranted: it finishes and is revoked one level per step, back to the original uv.
+    let flat: Vec<Vec3> = orig.iter().map(|p| Vec3::new(p.x, p.y, 0.0)).collect();
+    let (am2, _) = AnalysisMesh::single(&Mesh {
+        positions: flat.clone(),
+        ..g.mesh.clone()
+    })
+    .unwrap();
+    let clean = analyze(&am2, &flat).unwrap();
+    assert!(clean.is_clean());
+    for step in 0..3 {
+        let r = ck.update_uv(&am2, &clean, &flat).unwrap();
+        assert_eq!(r.revoked_levels, 1, "step {step}");
+    }
+    assert!(ck.operations().next().is_none());
+    assert_eq!(ck.current_uv(), &orig[..]);
+    let log = ck.finesse_log();
+    let rec = log.iter().find(|f| f.kind == OpKind::Sector).unwrap();
+    assert_eq!(rec.end, Some(EndReason::Finished));
+    // Off, no sector starts.
+    let mut off = ChaKo::new(
+        &g,
+        Params {
+            bli_sectors: false,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    let r = off.update_uv(&am, &a, &pos).unwrap();
+    assert_eq!(r.sectors_started, 0);
+    assert!(off.operations().all(|o| o.kind != OpKind::Sector));
+}

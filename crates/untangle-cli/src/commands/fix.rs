@@ -122,6 +122,11 @@ pub struct Args {
     /// pass the edges at that vertex, so the path can vanish there).
     #[arg(long)]
     pub no_open_bli_loops: bool,
+    /// Do not shrink BLI paths with an interior loop vertex into that vertex (by default the
+    /// cloth between the vertex and the pierced boundary edge, the path's "sector", is moved
+    /// toward the vertex in uv, passes red cloth meanwhile, and the vertex's edges are open).
+    #[arg(long)]
+    pub no_bli_sectors: bool,
     /// Give no region to the paths Wicke's rules leave without one (by default, on a garment,
     /// the cloth that has passed into another tube of it, found by the generalized winding
     /// number, is coloured red and pulled out: a leg's wall inside the other leg, say).
@@ -266,6 +271,7 @@ impl Args {
         }
         p.analysis.bli_regions_red = !self.no_bli_regions;
         p.cha_ko.open_bli_loops = !self.no_open_bli_loops;
+        p.cha_ko.bli_sectors = !self.no_bli_sectors;
         p.analysis.winding_regions = !self.no_winding_regions;
         match self.integrator {
             LoopIntegrator::BaraffWitkin => p.sim.integrator = Integrator::BaraffWitkin,
@@ -744,6 +750,8 @@ pub(crate) fn step_json(s: &LoopStep) -> serde_json::Value {
         "pulls_started": s.uv.pulls_started,
         "shrinks": s.uv.shrinks_started + s.uv.shrinks_continued,
         "shrinks_started": s.uv.shrinks_started,
+        "sectors": s.uv.sectors_started + s.uv.sectors_continued,
+        "sectors_started": s.uv.sectors_started,
         "revokes": s.uv.revoked_levels,
         "restored": s.uv.restored,
         "active_ops": s.uv.active_ops,

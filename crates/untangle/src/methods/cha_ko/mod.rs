@@ -36,6 +36,7 @@ pub mod report;
 pub mod resolve;
 pub mod schedule;
 pub mod seams;
+pub mod sectors;
 pub mod slit;
 pub mod state;
 pub mod subjects;
@@ -86,6 +87,10 @@ pub struct ChaKo {
     prev_red: Option<Vec<bool>>,
     /// Shrinks toward a loop vertex started as a last resort (see [`schedule`]).
     last_resort_ops: std::collections::BTreeSet<u32>,
+    /// Sectors of the last [`ChaKo::update_uv`]'s BLI paths with an interior loop vertex
+    /// ([`sectors`]; empty when [`Params::bli_sectors`] is off; the other updates, which see
+    /// no paths, keep them).
+    sectors: Vec<sectors::Sector>,
 }
 
 impl ChaKo {
@@ -111,6 +116,7 @@ impl ChaKo {
             cut_edge: Vec::new(),
             prev_red: None,
             last_resort_ops: Default::default(),
+            sectors: Vec::new(),
             params,
         })
     }
@@ -163,6 +169,19 @@ impl ChaKo {
         self.state.ops.values()
     }
 
+    /// The sectors of the last [`ChaKo::update_uv`] ([`sectors`]).
+    pub fn sectors(&self) -> &[sectors::Sector] {
+        &self.sectors
+    }
+
+    /// The BLI sector operations in progress that have not ended ([`sectors`]).
+    pub fn running_sectors(&self) -> impl Iterator<Item = &Op> {
+        self.state
+            .ops
+            .values()
+            .filter(|op| op.kind == OpKind::Sector && self.log[op.id as usize].end.is_none())
+    }
+
     /// Whether every uv coordinate is back at its original value (no operation in progress).
     pub fn is_restored(&self) -> bool {
         self.state.ops.is_empty()
@@ -209,6 +228,11 @@ impl ChaKo {
             .flat_map(|p| p.loop_vertices().iter().copied())
             .collect();
         let cut: Vec<u32> = analysis.crossings.iter().map(|c| c.edge).collect();
+        self.sectors = if self.params.bli_sectors {
+            sectors::sectors(am, analysis, &self.mesh.garment)
+        } else {
+            Vec::new()
+        };
         self.update_uv_with_paths(&analysis.coloring, &lv, Some(&cut), Some(positions))
     }
 

@@ -125,6 +125,20 @@ impl UvMesh {
         }
     }
 
+    /// The sector operation of `s` ([`super::sectors`]): its subjects toward its loop vertex.
+    pub fn sector(&self, orig: &[Vec2], s: &super::sectors::Sector) -> Proposal {
+        Proposal {
+            kind: OpKind::Sector,
+            subjects: s.subjects.clone(),
+            target: s.vertex,
+            triangle: NONE,
+            copies: super::sectors::sector_copies(&self.garment, orig, s),
+            virtual_copies: 0,
+            unsupported: 0,
+            fallback: None,
+        }
+    }
+
     /// The triangle inversion test of a proposal over all triangles of its subjects' fans.
     pub fn test(&self, orig: &[Vec2], p: &Proposal) -> TitResult {
         let tris = fan_triangles(&self.garment.topology, &p.subjects);

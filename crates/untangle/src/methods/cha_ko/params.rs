@@ -90,6 +90,10 @@ pub struct Params {
     /// path's piercing point away from the loop vertex, the only place where such a path can
     /// vanish.
     pub open_bli_loops: bool,
+    /// BLI sectors (ours, on by default; [`super::sectors`]): the boundary strand of a BLI path
+    /// with an interior loop vertex is shrunk into that vertex, ahead of the colouring's
+    /// operations, so that the path reaches the vertex's fan where the open loop lets it vanish.
+    pub bli_sectors: bool,
     /// Trial step (ours, see [`super::trial`]; used by [`super::Resolver`]): after a simulator
     /// step that turned a green vertex red (against Sec. 7's theorem, part 1), roll it back and
     /// retry it with the red-red pairs of the new crossings at those vertices held apart, up to
@@ -143,6 +147,7 @@ impl Default for Params {
             pull_across_cut_edges: true,
             mixed_edges: MixedEdges::Red,
             open_bli_loops: true,
+            bli_sectors: true,
             trial_retries: 0,
             trial_block: TrialBlock::GreenGreen,
             trial_trigger: TrialTrigger::CountIncrease,

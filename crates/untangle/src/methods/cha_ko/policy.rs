@@ -88,6 +88,12 @@ pub struct MchPolicy<'a> {
     /// of [`open_bli_loops`]; `None`: none). A pair of an open edge and a red edge is red-red;
     /// every other pair keeps its colour.
     pub open_edges: Option<&'a [bool]>,
+    /// Vertices that pass red cloth, and the cloth they pass (ours: `(subjects, partners)`,
+    /// per vertex: the subjects of the running BLI sector operations and the corners of the
+    /// triangles their paths cross, [`super::sectors::transparency`]; `None`: none). A pair of
+    /// a subject (or an edge or triangle at one) and a red primitive at a partner is red-red;
+    /// every other pair keeps its colour.
+    pub transparent: Option<(&'a [bool], &'a [bool])>,
 }
 
 /// The interior loop vertices of the BLI paths of `a` that lie in their loop vertex's fan
@@ -157,7 +163,20 @@ impl<'a> MchPolicy<'a> {
             mixed_edges: MixedEdges::Red,
             thin_rg: None,
             open_edges: None,
+            transparent: None,
         }
+    }
+
+    /// Whether the primitive with vertices `a` may pass the red primitive with vertices `b`
+    /// under [`MchPolicy::transparent`] (`a` has a subject, `b` a partner).
+    #[inline]
+    fn passes(&self, a: &[u32], b: &[u32]) -> bool {
+        let flag = |m: &[bool], vs: &[u32]| {
+            vs.iter()
+                .any(|&v| m.get(v as usize).copied().unwrap_or(false))
+        };
+        self.transparent
+            .is_some_and(|(s, p)| flag(s, a) && flag(p, b))
     }
 
     /// The thickness of a red-green pair whose red primitive has the vertices `red_side`.
@@ -206,10 +225,39 @@ impl<'a> MchPolicy<'a> {
                 }
             }
         };
-        match self.open_edges {
-            Some(open) if (r0 && open[e1 as usize]) || (r1 && open[e0 as usize]) => (true, true),
-            _ => (r0, r1),
+        if let Some(open) = self.open_edges {
+            if (r0 && open[e1 as usize]) || (r1 && open[e0 as usize]) {
+                return (true, true);
+            }
         }
+        if self.transparent.is_some() {
+            let (a, b) = (
+                &self.mesh.topology.edges[e0 as usize],
+                &self.mesh.topology.edges[e1 as usize],
+            );
+            if (r1 && self.passes(a, b)) || (r0 && self.passes(b, a)) {
+                return (true, true);
+            }
+        }
+        (r0, r1)
+    }
+
+    /// Whether vertex `v` and triangle `t` count as red: their colours, except that a pair of
+    /// a [`MchPolicy::transparent`] subject (or a triangle at one) and a red primitive at a
+    /// partner is red-red.
+    #[inline]
+    fn vt_reds(&self, v: u32, t: u32) -> (bool, bool) {
+        let (rv, rt) = (
+            self.coloring.red_vertex[v as usize],
+            self.coloring.red_triangle[t as usize],
+        );
+        let tri = &self.mesh.triangles[t as usize];
+        if self.transparent.is_some()
+            && ((rt && self.passes(&[v], tri)) || (rv && self.passes(tri, &[v])))
+        {
+            return (true, true);
+        }
+        (rv, rt)
     }
 
     fn vertex_is_cloth(&self, v: u32) -> bool {
@@ -226,10 +274,8 @@ impl<'a> MchPolicy<'a> {
         if !self.vertex_is_cloth(v) || self.mesh.kind_of_triangle(t) != ObjectKind::Cloth {
             return PairColour::GreenGreen;
         }
-        pair_colour(
-            self.coloring.red_vertex[v as usize],
-            self.coloring.red_triangle[t as usize],
-        )
+        let (rv, rt) = self.vt_reds(v, t);
+        pair_colour(rv, rt)
     }
 
     /// Colour class of edge `e0` against edge `e1` (analysis-mesh topology edge indices).
@@ -263,10 +309,7 @@ impl ContactPolicy for MchPolicy<'_> {
     /// Cloth vertex against cloth triangle (garment numbering = analysis numbering).
     #[inline]
     fn vertex_triangle(&self, vertex: u32, triangle: u32) -> Contact {
-        let (rv, rt) = (
-            self.coloring.red_vertex[vertex as usize],
-            self.coloring.red_triangle[triangle as usize],
-        );
+        let (rv, rt) = self.vt_reds(vertex, triangle);
         let colour = pair_colour(rv, rt);
         if colour == PairColour::RedGreen && self.thin_rg.is_some() {
             let t = if rv {
@@ -466,6 +509,67 @@ mod tests {
                 assert_eq!(p.vertex_triangle(v, t), plain.vertex_triangle(v, t));
             }
         }
+    }
+
+    #[test]
+    fn transparent_subjects_pass_red_partners_and_nothing_else_changes() {
+        // Vertex 6 red (its edges and triangles too); vertex 18, far from it, a subject; the
+        // only partner is 7, so of the red triangles at 6 those at 7 too are passed, the rest
+        // not.
+        let (am, coloring) = grid_coloring(&[6]);
+        let (eps, eps_rg) = (1e-6, 0.1);
+        let plain = MchPolicy::new(&am, &coloring, eps, eps_rg);
+        let subjects: Vec<bool> = (0..25).map(|v| v == 18).collect();
+        let partners: Vec<bool> = (0..25).map(|v| v == 7).collect();
+        let mut p = plain.clone();
+        p.transparent = Some((&subjects, &partners));
+        let sub = |vs: &[u32]| vs.contains(&18);
+        let par = |vs: &[u32]| vs.contains(&7);
+        let (c, edges, tris) = (&coloring, &am.topology.edges, &am.triangles);
+        let (mut passed, mut kept) = (0, 0);
+        for v in 0..25u32 {
+            for t in 0..tris.len() as u32 {
+                let (rv, rt) = (c.red_vertex[v as usize], c.red_triangle[t as usize]);
+                let tri = &tris[t as usize];
+                let crosses = (rt && sub(&[v]) && par(tri)) || (rv && sub(tri) && par(&[v]));
+                let colour = if crosses {
+                    PairColour::RedRed
+                } else {
+                    pair_colour(rv, rt)
+                };
+                assert_eq!(
+                    p.vertex_triangle(v, t),
+                    rule(colour, eps, eps_rg),
+                    "v {v} t {t}"
+                );
+                assert_eq!(p.vertex_triangle_colour(v, t), colour);
+                passed += (p.vertex_triangle(v, t) != plain.vertex_triangle(v, t)) as usize;
+                kept += (v == 18 && rt && !par(tri)) as usize;
+            }
+        }
+        for i in 0..edges.len() {
+            for j in 0..edges.len() {
+                let (ri, rj) = (c.red_edge[i], c.red_edge[j]);
+                let crosses = (rj && sub(&edges[i]) && par(&edges[j]))
+                    || (ri && sub(&edges[j]) && par(&edges[i]));
+                let colour = if crosses {
+                    PairColour::RedRed
+                } else {
+                    pair_colour(ri, rj)
+                };
+                let (a, b) = (i as u32, j as u32);
+                assert_eq!(p.edge_edge(a, b), rule(colour, eps, eps_rg), "e {i} f {j}");
+                assert_eq!(
+                    p.edge_edge_by_vertices(edges[i], edges[j]),
+                    rule(colour, eps, eps_rg)
+                );
+                passed += (p.edge_edge(a, b) != plain.edge_edge(a, b)) as usize;
+            }
+        }
+        // Vertex 18 against the red triangles at 6 and 7, and edges at 18 against red edges at
+        // 7, now cross (red-green before); red triangles at 6 only keep the red-green band.
+        assert!(passed > 0);
+        assert!(kept > 0);
     }
 
     #[test]

@@ -133,6 +133,10 @@ pub struct UvUpdateReport {
     pub pulls_started: usize,
     /// Pulls continued by one more level.
     pub pulls_continued: usize,
+    /// BLI sector operations initiated (ours, [`super::sectors`]).
+    pub sectors_started: usize,
+    /// BLI sector operations continued by one more level.
+    pub sectors_continued: usize,
     /// Levels revoked (lines 10-13).
     pub revoked_levels: usize,
     /// Operations fully revoked (subjects back at their original uv).

@@ -402,11 +402,17 @@ impl Resolver {
             self.sim.set_rest_uv(self.chako.current_uv())?;
         }
         let t2 = Instant::now();
-        let open_loops = if !clean && self.chako.params().open_bli_loops {
+        let mut open_loops = if !clean && self.chako.params().open_bli_loops {
             super::policy::open_bli_loops(&self.am, &a)
         } else {
             Vec::new()
         };
+        // The running BLI sectors open their loop vertex too ([`super::sectors`]).
+        if !clean {
+            open_loops.extend(self.chako.running_sectors().map(|op| op.target));
+            open_loops.sort_unstable();
+            open_loops.dedup();
+        }
         let open_bli_loops = open_loops.len();
         let open_edges = super::policy::edges_at(&self.am, &open_loops);
         let guard = self.params.divergence.filter(|_| !clean);
@@ -520,6 +526,12 @@ impl Resolver {
         let subjects: Vec<bool>;
         let mut policy = self.chako.contact_policy(&self.am, a);
         policy.open_edges = open_edges;
+        let transparent = super::sectors::transparency(
+            self.chako.running_sectors(),
+            self.chako.sectors(),
+            self.sim.positions().len(),
+        );
+        policy.transparent = transparent.as_ref().map(|(s, p)| (&s[..], &p[..]));
         if self.params.subject_rg_scale != 1.0 {
             subjects = subject_flags(self.chako.operations(), self.sim.positions().len());
             let t =

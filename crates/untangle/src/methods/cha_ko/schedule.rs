@@ -87,6 +87,7 @@ use super::fan::{edge_fan, vertex_fan};
 use super::operations::{Proposal, UvMesh};
 use super::report::{EndReason, FallbackUse, FinesseRecord, Stall, StallReason, UvUpdateReport};
 use super::seams::seam_kind;
+use super::sectors::Sector;
 use super::state::{Op, OpKind, UvState};
 use super::ChaKo;
 use crate::analysis::Coloring;
@@ -112,6 +113,7 @@ impl ChaKo {
             loop_vertices,
             last_resort_ops,
             cut_edge,
+            sectors,
             ..
         } = self;
         let step = *step;
@@ -189,6 +191,65 @@ impl ChaKo {
                 .filter(|&&t| t < nt)
                 .filter_map(|&t| target_of(t))
                 .all(|i| loop_vertices.binary_search(&i).is_ok());
+
+        // (ours) BLI sectors first ([`super::sectors`]): the boundary strand of a BLI path with
+        // an interior loop vertex shrinks into it; the vertex itself is held in place.
+        for sec in sectors.iter() {
+            let v = sec.vertex;
+            if tabu.contains_key(&TabuKey::Sector(v)) {
+                rep.blocked_tabu += 1;
+                continue;
+            }
+            let running = state
+                .ops
+                .values()
+                .find(|op| {
+                    op.kind == OpKind::Sector && op.target == v && log[op.id as usize].end.is_none()
+                })
+                .map(|op| op.id);
+            if let Some(id) = running {
+                let subjects = state.ops[&id].subjects.clone();
+                if subjects.iter().any(|&w| moved[w as usize] == stamp) {
+                    rep.blocked_subject += 1;
+                    continue;
+                }
+                touched[id as usize] = true;
+                if state.advance(id) {
+                    rep.sectors_continued += 1;
+                    note_level(state, log, id);
+                } else {
+                    rep.paused += 1;
+                }
+                for w in subjects {
+                    moved[w as usize] = stamp;
+                }
+                moved[v as usize] = stamp;
+                continue;
+            }
+            if sec
+                .subjects
+                .iter()
+                .any(|&w| moved[w as usize] == stamp || state.is_displaced(w))
+                || moved[v as usize] == stamp
+            {
+                rep.blocked_subject += 1;
+                continue;
+            }
+            tested = true;
+            let p = mesh.sector(&state.orig, sec);
+            if p.copies.is_empty() || !mesh.test(&state.orig, &p).pass {
+                rep.tit_rejected += 1;
+                continue;
+            }
+            regular_moves += 1;
+            start(mesh, state, log, p, step, params.level_cap(), &mut rep);
+            touched.push(true);
+            rep.sectors_started += 1;
+            for &w in &sec.subjects {
+                moved[w as usize] = stamp;
+            }
+            moved[v as usize] = stamp;
+        }
 
         // Lines 2-5: red* triangles.
         for &t in &col.red_star {
@@ -405,6 +466,7 @@ impl ChaKo {
             match p.kind {
                 OpKind::Pull => rep.pulls_started += 1,
                 OpKind::Shrink => rep.shrinks_started += 1,
+                OpKind::Sector => rep.sectors_started += 1,
             }
             start(mesh, state, log, p, step, params.level_cap(), &mut rep);
             touched.push(true);
@@ -426,7 +488,7 @@ impl ChaKo {
             } else {
                 &[]
             };
-            let (warranted, finished) = warranted(mesh, op, col, avoid);
+            let (warranted, finished) = warranted(mesh, op, col, avoid, sectors);
             let warranted = warranted
                 && !(op.kind == OpKind::Shrink
                     && loop_vertices.binary_search(&op.target).is_ok()
@@ -489,11 +551,15 @@ impl ChaKo {
             }
         }
         rep.stalls = stalls;
-        let continued = rep.pulls_continued + rep.shrinks_continued;
+        let continued = rep.pulls_continued + rep.shrinks_continued + rep.sectors_continued;
         rep.no_tit_passable_fan = tested && regular_moves == 0 && continued == 0;
         rep.active_ops = state.ops.len();
-        rep.uv_changed =
-            rep.pulls_started + rep.shrinks_started + continued + rep.revoked_levels > 0;
+        rep.uv_changed = rep.pulls_started
+            + rep.shrinks_started
+            + rep.sectors_started
+            + continued
+            + rep.revoked_levels
+            > 0;
         rep
     }
 }
@@ -540,6 +606,8 @@ pub(super) enum TabuKey {
     Pull(u32, u32),
     /// Shrink of a red* triangle.
     Shrink(u32),
+    /// BLI sector at a loop vertex.
+    Sector(u32),
 }
 
 impl TabuKey {
@@ -547,6 +615,7 @@ impl TabuKey {
         match op.kind {
             OpKind::Pull => TabuKey::Pull(op.subjects[0], op.target),
             OpKind::Shrink => TabuKey::Shrink(op.triangle),
+            OpKind::Sector => TabuKey::Sector(op.target),
         }
     }
 }
@@ -576,7 +645,13 @@ fn avoidable_loop_target(
 }
 
 /// Whether the colouring still warrants `op`, and whether its finesse is complete.
-fn warranted(mesh: &UvMesh, op: &Op, col: &Coloring, loop_vertices: &[u32]) -> (bool, bool) {
+fn warranted(
+    mesh: &UvMesh,
+    op: &Op,
+    col: &Coloring,
+    loop_vertices: &[u32],
+    sectors: &[Sector],
+) -> (bool, bool) {
     let topo = &mesh.garment.topology;
     match op.kind {
         OpKind::Pull => {
@@ -601,6 +676,11 @@ fn warranted(mesh: &UvMesh, op: &Op, col: &Coloring, loop_vertices: &[u32]) -> (
                 edge_red && col.red_star.binary_search(&op.triangle).is_ok(),
                 !edge_red,
             )
+        }
+        OpKind::Sector => {
+            // Warranted while a BLI path still has its loop vertex there.
+            let open = sectors.iter().any(|s| s.vertex == op.target);
+            (open, !open)
         }
     }
 }

@@ -27,7 +27,7 @@ pub(crate) fn ser_vec2<S: serde::Serializer>(v: &Vec2, s: S) -> Result<S::Ok, S:
     serde::Serialize::serialize(&[v.x, v.y], s)
 }
 
-/// The two operations of Sec. 5.1.1.
+/// The two operations of Sec. 5.1.1, and the BLI sector (ours).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum OpKind {
@@ -35,6 +35,9 @@ pub enum OpKind {
     Pull,
     /// Triangle shrinkage of a red* triangle: the red edge's ends move toward the third vertex.
     Shrink,
+    /// BLI sector (ours, [`super::sectors`]): the boundary strand of a BLI path moves toward
+    /// its interior loop vertex.
+    Sector,
 }
 
 /// An operation in progress.
@@ -44,7 +47,8 @@ pub struct Op {
     pub id: u32,
     /// Pull or shrink.
     pub kind: OpKind,
-    /// Subject world vertices (one for a pull, the red edge's two ends for a shrink).
+    /// Subject world vertices (one for a pull, the red edge's two ends for a shrink, the
+    /// strand's corners for a sector).
     pub subjects: Vec<u32>,
     /// Target world vertex.
     pub target: u32,
