@@ -121,6 +121,7 @@ fn cross_resolves_with_the_regionless_fallback() {
     p.regionless_after = 30;
     p.slit_ridges = false;
     p.cha_ko.open_bli_loops = false;
+    p.cha_ko.bli_sectors = false; // session 14 had neither
     let mut r = Resolver::new(&g, p).unwrap();
     let s = r.run(|_| {}).unwrap();
     assert_eq!(s.outcome, Outcome::Resolved, "{s:?}");
@@ -136,7 +137,9 @@ fn cross_resolves_with_slit_ridges() {
     // `slit_ridges` (ours, on by default, `methods::cha_ko::slit`) the fold's ridge vertices
     // are coloured red when that happens and pulled back across: CROSS resolves at one and two
     // subdivision levels and for gamma 0.7-0.9, without the regionless fallback, after a stall
-    // of 10 steps (`slit_stall`, its default) or at once.
+    // of 10 steps (`slit_stall`, its default) or at once. The run also makes interior BLI paths,
+    // whose sectors (on by default) can resolve it first, so the slit is tested with sectors
+    // off and the defaults only for the outcome.
     for (size, gamma, stall) in [
         (2, 0.8, 10),
         (1, 0.8, 10),
@@ -150,6 +153,8 @@ fn cross_resolves_with_slit_ridges() {
         p.slit_ridges = true;
         p.slit_stall = stall;
         p.cha_ko.gamma = gamma;
+        resolves_with(&g, p.clone());
+        p.cha_ko.bli_sectors = false;
         let mut r = Resolver::new(&g, p.clone()).unwrap();
         let s = r.run(|_| {}).unwrap();
         assert_eq!(
