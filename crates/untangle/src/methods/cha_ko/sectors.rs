@@ -27,10 +27,12 @@
 //! their orientation; the others are checked by the triangle inversion test before it starts.
 //!
 //! Measured (BENCHMARKS.md, session 35): the `bli-interior` scene resolves at refinement levels
-//! 0, 1 and 3 (16, 89 and 187 steps; without sectors 77 steps, then stuck), and dress4 sagged
-//! 60 steps resolves through Cha & Ko's loop alone.
+//! 0 and 3 (16 and 168 steps; without sectors 77 steps and stuck), not at 1, 2 and 4, and
+//! dress4 sagged 60 steps resolves through Cha & Ko's loop alone (one dress4 run in seven is
+//! lost: sag 10 as `cha_ko_garments` runs it).
 
 use super::state::{MovedCopy, Op};
+use super::subjects::subject_flags;
 use crate::analysis::{Analysis, AnalysisMesh, EndKind, ObjectKind, PathKind};
 use crate::geom::Vec2;
 use crate::mesh::Garment;
@@ -190,23 +192,21 @@ pub fn transparency<'a>(
     sectors: &[Sector],
     num_vertices: usize,
 ) -> Option<(Vec<bool>, Vec<bool>)> {
-    let mut flags: Option<(Vec<bool>, Vec<bool>)> = None;
-    let set = |f: &mut Vec<bool>, vs: &[u32]| {
-        for &v in vs {
-            if let Some(x) = f.get_mut(v as usize) {
-                *x = true;
-            }
-        }
-    };
-    for op in ops {
-        let (subjects, partners) =
-            flags.get_or_insert_with(|| (vec![false; num_vertices], vec![false; num_vertices]));
-        set(subjects, &op.subjects);
-        for s in sectors.iter().filter(|s| s.vertex == op.target) {
-            set(partners, &s.partners);
+    let ops: Vec<&Op> = ops.collect();
+    if ops.is_empty() {
+        return None;
+    }
+    let subjects = subject_flags(ops.iter().copied(), num_vertices);
+    let mut partners = vec![false; num_vertices];
+    for s in sectors
+        .iter()
+        .filter(|s| ops.iter().any(|op| op.target == s.vertex))
+    {
+        for &v in &s.partners {
+            partners[v as usize] = true;
         }
     }
-    flags
+    Some((subjects, partners))
 }
 
 #[cfg(test)]
